@@ -1,0 +1,37 @@
+"""The paper's grasp controller on planar convex polygons (sections 3-4, Appendices A-B).
+
+Pure numpy/scipy/clarabel (and torch for the predictor): imports no MuJoCo and no other package
+of graspsim, so it can be used on its own.
+"""
+
+from controllers.grasp.composition import Composer, KnowledgeBased, luce_activation
+from controllers.grasp.errors import GraspError, ModelNotTrainedError, PolygonError, UnknownNameError
+from controllers.grasp.objects import PAPER_OBJECTS, paper_object, random_convex_polygon, regular_polygon
+from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts
+from controllers.grasp.score import SUCCESS_THRESHOLD, GraspScore, grasp_score
+from controllers.grasp.state import ControlState
+from controllers.grasp.trials import PolygonBatch, TrialBatch, run_trials
+
+__all__ = [
+    "PAPER_OBJECTS",
+    "SUCCESS_THRESHOLD",
+    "Composer",
+    "ContactFrames",
+    "ControlState",
+    "GraspError",
+    "GraspScore",
+    "KnowledgeBased",
+    "ModelNotTrainedError",
+    "Polygon",
+    "PolygonBatch",
+    "PolygonError",
+    "TrialBatch",
+    "UnknownNameError",
+    "grasp_score",
+    "locate_contacts",
+    "luce_activation",
+    "paper_object",
+    "random_convex_polygon",
+    "regular_polygon",
+    "run_trials",
+]

@@ -1,0 +1,236 @@
+"""Planar convex polygon objects and the paper's contact coordinate.
+
+A contact is located by ``theta``, its polar angle about the polygon centroid (Appendix B of the
+paper). A contact on edge ``j`` (outward normal at angle ``normal_angle[j]``, at distance ``offset[j]``
+from the centroid) sits at ``r(theta) = offset[j] / cos(theta - normal_angle[j])`` and has the
+surface coordinate ``s = offset[j] * tan(theta - normal_angle[j])`` along the edge's CCW tangent;
+``s`` is also the moment ``m_z`` of a unit inward normal force there (Eq. 9 with phi = 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.grasp.errors import PolygonError
+
+#: Vertices closer than this (relative to the polygon size) are the same vertex.
+RELATIVE_TOLERANCE = 1e-9
+#: Minimum area, relative to the squared diameter, of an acceptable polygon.
+MIN_RELATIVE_AREA = 1e-6
+
+
+class ContactFrames(NamedTuple):
+    """Where contacts at polar angles ``theta`` touch a polygon; every field has theta's shape
+    (plus a trailing 2 for vectors)."""
+
+    edge: NDArray[np.int64]  #: index of the edge touched
+    point: NDArray[np.float64]  #: contact point, object frame
+    normal: NDArray[np.float64]  #: outward unit normal of the edge
+    normal_angle: NDArray[np.float64]  #: polar angle of that normal (rad)
+    offset: NDArray[np.float64]  #: distance from the centroid to the edge's line
+    surface: NDArray[np.float64]  #: surface coordinate s along the CCW tangent (= m_z, Eq. 9)
+
+
+def locate_contacts(
+    normal_angle: NDArray[np.float64], offset: NDArray[np.float64], theta: ArrayLike
+) -> ContactFrames:
+    """Locate contacts on convex polygons given by their edge normals and offsets.
+
+    ``normal_angle`` and ``offset`` have shape ``(..., E)``; ``theta`` has shape ``(..., n)`` with
+    the same leading shape (broadcastable). Padding edges may have ``offset = inf``. A ray from the
+    centroid at angle theta leaves a convex polygon through the edge whose line it meets first:
+    ``argmin_j offset_j / cos(theta - normal_angle_j)`` over edges facing the ray.
+    """
+    theta = np.asarray(theta, dtype=float)
+    rel = theta[..., :, None] - normal_angle[..., None, :]
+    facing = np.cos(rel)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.where(facing > 1e-12, offset[..., None, :] / facing, np.inf)
+    edge = np.argmin(dist, axis=-1)
+    nang = np.take_along_axis(np.broadcast_to(normal_angle[..., None, :], rel.shape), edge[..., None], -1)[..., 0]
+    off = np.take_along_axis(np.broadcast_to(offset[..., None, :], rel.shape), edge[..., None], -1)[..., 0]
+    radius = np.take_along_axis(dist, edge[..., None], -1)[..., 0]
+    point = radius[..., None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    normal = np.stack([np.cos(nang), np.sin(nang)], axis=-1)
+    surface = off * np.tan(theta - nang)
+    return ContactFrames(edge, point, normal, nang, off, surface)
+
+
+def _as_vertex_array(vertices: ArrayLike) -> NDArray[np.float64]:
+    try:
+        v = np.array(vertices, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise PolygonError(f"polygon vertices must be numbers, got {vertices!r}") from e
+    if v.ndim != 2 or v.shape[1] != 2:
+        raise PolygonError(f"polygon vertices must be a list of (x, y) pairs, got shape {v.shape}")
+    if v.shape[0] < 3:
+        raise PolygonError(f"a polygon needs at least 3 vertices, got {v.shape[0]}")
+    if not np.all(np.isfinite(v)):
+        raise PolygonError("polygon vertices must be finite numbers (found NaN or inf)")
+    return v
+
+
+def centroid_of(vertices: ArrayLike) -> NDArray[np.float64]:
+    """Area centroid of a polygon given by its vertices (any orientation)."""
+    return _signed_area_and_centroid(_as_vertex_array(vertices))[1]
+
+
+def _signed_area_and_centroid(v: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+    """Shoelace formula: signed area (> 0 for CCW) and area centroid."""
+    x, y = v[:, 0], v[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    area = 0.5 * float(cross.sum())
+    if area == 0.0:
+        return 0.0, v.mean(axis=0)
+    cx = float(((x + xn) * cross).sum()) / (6.0 * area)
+    cy = float(((y + yn) * cross).sum()) / (6.0 * area)
+    return area, np.array([cx, cy])
+
+
+@dataclass(frozen=True)
+class Polygon:
+    """A convex polygon, vertices CCW, centroid at the origin of its object frame.
+
+    Build one with :meth:`from_vertices`, which checks the input and moves the centroid to the
+    origin. Lengths are in whatever unit the vertices were given in (metres in the simulator);
+    :meth:`unit_moment` gives the copy scaled as section 3.4 asks (maximum moment 1).
+    """
+
+    vertices: NDArray[np.float64]
+    name: str = "polygon"
+    normal_angle: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+    offset: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        v = self.vertices
+        edges = np.roll(v, -1, axis=0) - v
+        lengths = np.linalg.norm(edges, axis=1)
+        outward = np.stack([edges[:, 1], -edges[:, 0]], axis=1) / lengths[:, None]
+        object.__setattr__(self, "normal_angle", np.arctan2(outward[:, 1], outward[:, 0]))
+        object.__setattr__(self, "offset", np.einsum("ij,ij->i", outward, v))
+        v.setflags(write=False)
+        self.normal_angle.setflags(write=False)
+        self.offset.setflags(write=False)
+
+    @classmethod
+    def from_vertices(cls, vertices: ArrayLike, name: str = "polygon") -> Polygon:
+        """Check ``vertices`` (any orientation) and return the CCW polygon centred on its centroid.
+
+        Raises :class:`PolygonError` for fewer than 3 vertices, non-finite values, repeated
+        vertices, zero area, a non-convex or a self-intersecting outline.
+        """
+        v = _as_vertex_array(vertices)
+        size = float(np.ptp(v, axis=0).max())
+        if size <= 0.0:
+            raise PolygonError(f"polygon {name!r} has zero area: all vertices coincide")
+        edges = np.roll(v, -1, axis=0) - v
+        short = np.linalg.norm(edges, axis=1) <= RELATIVE_TOLERANCE * size
+        if np.any(short):
+            i = int(np.flatnonzero(short)[0])
+            raise PolygonError(
+                f"polygon {name!r} repeats vertex {i} ({v[i, 0]:g}, {v[i, 1]:g}): remove duplicates"
+            )
+        area, centroid = _signed_area_and_centroid(v)
+        if abs(area) <= MIN_RELATIVE_AREA * size**2:
+            raise PolygonError(f"polygon {name!r} has zero area (its vertices are collinear)")
+        if area < 0.0:
+            v = v[::-1].copy()
+            edges = np.roll(v, -1, axis=0) - v
+        turn = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+        if np.any(turn < -RELATIVE_TOLERANCE * size**2):
+            i = int((np.flatnonzero(turn < -RELATIVE_TOLERANCE * size**2)[0] + 1) % len(v))
+            raise PolygonError(
+                f"polygon {name!r} is not convex at vertex {i} ({v[i, 0]:g}, {v[i, 1]:g}); "
+                "graspsim grasps convex polygons only (give the convex hull)"
+            )
+        heading = np.unwrap(np.arctan2(edges[:, 1], edges[:, 0]))
+        total_turn = heading[-1] - heading[0] + _wrap(heading[0] - heading[-1])
+        if total_turn > 2.0 * np.pi + 1e-6:
+            raise PolygonError(f"polygon {name!r} is self-intersecting (its outline winds more than once)")
+        return cls(vertices=v - centroid, name=name)
+
+    # --- derived geometry -------------------------------------------------------------------
+    @property
+    def n_edges(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def area(self) -> float:
+        return _signed_area_and_centroid(self.vertices)[0]
+
+    @property
+    def vertex_angles(self) -> NDArray[np.float64]:
+        """Polar angle of each vertex about the centroid (rad, in (-pi, pi])."""
+        return np.arctan2(self.vertices[:, 1], self.vertices[:, 0])
+
+    @property
+    def max_moment(self) -> float:
+        """Largest |m_z| a unit normal force can exert anywhere on the boundary (section 3.4)."""
+        v = self.vertices
+        tangent = np.stack([-np.sin(self.normal_angle), np.cos(self.normal_angle)], axis=1)
+        s_start = np.einsum("ij,ij->i", tangent, v)
+        s_end = np.einsum("ij,ij->i", tangent, np.roll(v, -1, axis=0))
+        return float(np.max(np.abs(np.concatenate([s_start, s_end]))))
+
+    @property
+    def diameter(self) -> float:
+        d = self.vertices[:, None, :] - self.vertices[None, :, :]
+        return float(np.sqrt((d**2).sum(-1)).max())
+
+    # --- transformations --------------------------------------------------------------------
+    def scaled(self, factor: float) -> Polygon:
+        if not np.isfinite(factor) or factor <= 0.0:
+            raise PolygonError(f"scale factor must be a positive number, got {factor!r}")
+        return Polygon(vertices=self.vertices * factor, name=self.name)
+
+    def unit_moment(self) -> Polygon:
+        """The copy scaled so that the maximum moment is 1 (section 3.4, 'maximum moment unitary')."""
+        return self.scaled(1.0 / self.max_moment)
+
+    def rotated(self, angle: float) -> Polygon:
+        """The copy rotated by ``angle`` radians about the centroid."""
+        c, s = np.cos(angle), np.sin(angle)
+        return Polygon(vertices=self.vertices @ np.array([[c, s], [-s, c]]), name=self.name)
+
+    # --- contacts ---------------------------------------------------------------------------
+    def locate(self, theta: ArrayLike) -> ContactFrames:
+        """Contact frames at polar angles ``theta`` (any shape)."""
+        t = np.asarray(theta, dtype=float)
+        frames = locate_contacts(self.normal_angle, self.offset, t.reshape(-1))
+        return ContactFrames(*(a.reshape(t.shape + a.shape[1:]) for a in frames))
+
+    def point_at(self, theta: ArrayLike) -> NDArray[np.float64]:
+        return self.locate(theta).point
+
+    def normal_at(self, theta: ArrayLike) -> NDArray[np.float64]:
+        return self.locate(theta).normal
+
+    def theta_of(self, point: ArrayLike) -> NDArray[np.float64]:
+        """Contact coordinate (polar angle) of boundary points given in the object frame."""
+        p = np.asarray(point, dtype=float)
+        return np.arctan2(p[..., 1], p[..., 0])
+
+
+def _wrap(angle: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to (-pi, pi]."""
+    a = np.asarray(angle, dtype=float)
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+wrap_angle = _wrap
+
+
+def parse_points(text: str, what: str = "polygon") -> NDArray[np.float64]:
+    """Parse ``"x,y;x,y;..."`` (the CLI's polygon and point format) into an (k, 2) array."""
+    try:
+        rows = [tuple(float(c) for c in part.split(",")) for part in text.strip().strip(";").split(";")]
+    except ValueError as e:
+        raise PolygonError(f"{what} must be written 'x,y;x,y;...', got {text!r}") from e
+    if any(len(r) != 2 for r in rows):
+        raise PolygonError(f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {text!r}")
+    return np.array(rows, dtype=float)

@@ -1,0 +1,197 @@
+"""Grasp trials (section 3.6.2, "Trial Description"), vectorized over many trials at once.
+
+Each trial places n contacts at random (uniform in the contact coordinate theta), then lets a
+composer move them by ``theta <- theta - gain * gradient`` until no contact moves more than
+0.0005 rad in a step, or for at most 300 steps. The final configuration is scored with S_G.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.grasp.composition import Composer
+from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts, wrap_angle
+from controllers.grasp.score import GraspScore, grasp_score
+from controllers.grasp.state import ControlState
+from controllers.grasp.wrench import eps_fc, eps_mc, fc_gradient_convex, mc_gradient_convex
+
+#: Maximum control steps per trial (section 3.6.2).
+MAX_STEPS = 300
+#: A trial has converged when no contact moved more than this in the last step (rad).
+CONVERGENCE_STEP = 5e-4
+#: Contacts per trial (four-fingered grasps).
+N_CONTACTS = 4
+#: Step size of the gradient descent on theta (rad per unit gradient). The paper does not state
+#: its gain. 0.25 is our choice (README, "Control gain"): in the MC phase a step shrinks the
+#: angular error by about GAIN * r_0^2, and r_0 = 1 / tan(pi / k) on a unit-moment regular k-gon,
+#: so 0.25 keeps the MC descent stable up to octagons (0.5 oscillates from heptagons on).
+GAIN = 0.25
+
+
+@dataclass(frozen=True)
+class PolygonBatch:
+    """Unit-moment polygons stacked as padded edge arrays, for vectorized contact location."""
+
+    polygons: tuple[Polygon, ...]
+    normal_angle: NDArray[np.float64]  #: (P, E_max); padding edges have offset inf
+    offset: NDArray[np.float64]  #: (P, E_max)
+
+    @classmethod
+    def of(cls, polygons: Sequence[Polygon]) -> PolygonBatch:
+        unit = tuple(p.unit_moment() for p in polygons)
+        e_max = max(p.n_edges for p in unit)
+        ang = np.zeros((len(unit), e_max))
+        off = np.full((len(unit), e_max), np.inf)
+        for i, p in enumerate(unit):
+            ang[i, : p.n_edges] = p.normal_angle
+            off[i, : p.n_edges] = p.offset
+        return cls(unit, ang, off)
+
+    def locate(self, object_index: NDArray[np.int64], theta: NDArray[np.float64]) -> ContactFrames:
+        return locate_contacts(self.normal_angle[object_index], self.offset[object_index], theta)
+
+
+def control_state(
+    batch: PolygonBatch,
+    object_index: NDArray[np.int64],
+    theta: NDArray[np.float64],
+    step: int,
+    active: NDArray[np.bool_],
+    task: ArrayLike | None = None,
+) -> ControlState:
+    """Evaluate both controllers' errors and convex gradients at ``theta``."""
+    frames = batch.locate(object_index, theta)
+    return ControlState(
+        step=step,
+        theta=theta,
+        frames=frames,
+        eps_fc=eps_fc(theta, task),
+        eps_mc=eps_mc(frames, task),
+        grad_fc=fc_gradient_convex(theta, task),
+        grad_mc=mc_gradient_convex(frames, theta, task),
+        active=active,
+        object_index=object_index,
+    )
+
+
+@dataclass(frozen=True)
+class TrialBatch:
+    """Results of T trials. Angles in radians; S_G is inf for infeasible configurations.
+
+    ``states`` (when recorded) holds (eps_FC, eps_MC) before each step and after the last one,
+    shape (T, MAX_STEPS + 1, 2), NaN past the end of each trial.
+    """
+
+    object_index: NDArray[np.int64]
+    theta_initial: NDArray[np.float64]
+    theta_final: NDArray[np.float64]
+    points: NDArray[np.float64]  #: (T, n, 2) final contact points, unit-moment object frame
+    steps: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+    eps_fc: NDArray[np.float64]
+    eps_mc: NDArray[np.float64]
+    s_g: NDArray[np.float64]
+    feasible: NDArray[np.bool_]
+    success: NDArray[np.bool_]
+    states: NDArray[np.float64] | None = field(default=None, repr=False)
+
+    @property
+    def failure_rate(self) -> float:
+        return float(1.0 - self.success.mean())
+
+
+def random_contacts(rng: np.random.Generator, n_trials: int, n_contacts: int) -> NDArray[np.float64]:
+    """Initial contact coordinates, uniform on [0, 2 pi)."""
+    return rng.uniform(0.0, 2.0 * np.pi, size=(n_trials, n_contacts))
+
+
+def score_contacts(
+    batch: PolygonBatch, object_index: NDArray[np.int64], theta: NDArray[np.float64], task: ArrayLike | None = None
+) -> list[GraspScore]:
+    """S_G of each configuration (one LP per trial)."""
+    frames = batch.locate(object_index, theta)
+    t = None if task is None else np.broadcast_to(np.asarray(task, float), (theta.shape[0], 3))
+    return [
+        grasp_score(frames.point[i], frames.normal[i], None if t is None else t[i]) for i in range(theta.shape[0])
+    ]
+
+
+def run_trials(
+    polygons: Sequence[Polygon],
+    object_index: ArrayLike,
+    composer: Composer,
+    rng: np.random.Generator,
+    *,
+    n_contacts: int = N_CONTACTS,
+    max_steps: int = MAX_STEPS,
+    gain: float = GAIN,
+    task: ArrayLike | None = None,
+    theta_initial: ArrayLike | None = None,
+    record_states: bool = False,
+    batch: PolygonBatch | None = None,
+) -> TrialBatch:
+    """Run ``len(object_index)`` trials at once; trial i grasps ``polygons[object_index[i]]``.
+
+    ``rng`` draws the initial contacts (unless ``theta_initial`` is given) and is passed to the
+    composer (exploration, pre-image noise). The same seed gives the same result.
+    """
+    if n_contacts < 2:
+        raise ValueError(f"a grasp needs at least 2 contacts, got {n_contacts}")
+    if max_steps < 1:
+        raise ValueError(f"max_steps must be >= 1, got {max_steps}")
+    batch = batch or PolygonBatch.of(polygons)
+    idx = np.asarray(object_index, dtype=np.int64)
+    n_trials = idx.shape[0]
+    if theta_initial is None:
+        theta = random_contacts(rng, n_trials, n_contacts)
+    else:
+        theta = np.array(theta_initial, dtype=float).reshape(n_trials, -1)
+    theta0 = theta.copy()
+    active = np.ones(n_trials, dtype=bool)
+    steps = np.zeros(n_trials, dtype=np.int64)
+    converged = np.zeros(n_trials, dtype=bool)
+    states = np.full((n_trials, max_steps + 1, 2), np.nan) if record_states else None
+    composer.begin(n_trials, rng)
+    state = control_state(batch, idx, theta, 0, active.copy(), task)
+    for k in range(max_steps):
+        if states is not None:
+            states[active, k, 0] = state.eps_fc[active]
+            states[active, k, 1] = state.eps_mc[active]
+        grad = composer.gradient(state, rng)
+        delta = np.where(active[:, None], -gain * grad, 0.0)
+        theta = wrap_angle(theta + delta)
+        moved = np.abs(delta).max(axis=1)
+        steps[active] = k + 1
+        done = active & (moved <= CONVERGENCE_STEP)
+        converged |= done
+        active = active & ~done
+        state = control_state(batch, idx, theta, k + 1, active.copy(), task)
+        if not active.any():
+            break
+    if states is not None:
+        rows = np.arange(n_trials)
+        states[rows, steps, 0] = state.eps_fc
+        states[rows, steps, 1] = state.eps_mc
+    scores = score_contacts(batch, idx, theta, task)
+    s_g = np.array([s.s_g for s in scores])
+    feasible = np.array([s.feasible for s in scores])
+    success = np.array([s.success for s in scores])
+    composer.end(state, success)
+    return TrialBatch(
+        object_index=idx,
+        theta_initial=theta0,
+        theta_final=theta,
+        points=state.frames.point,
+        steps=steps,
+        converged=converged,
+        eps_fc=state.eps_fc,
+        eps_mc=state.eps_mc,
+        s_g=s_g,
+        feasible=feasible,
+        success=success,
+        states=states,
+    )

@@ -1,0 +1,121 @@
+"""Polygon objects and the contact coordinate (Appendix B), checked against independent geometry."""
+
+import numpy as np
+import pytest
+
+from controllers.grasp import PAPER_OBJECTS, Polygon, PolygonError, UnknownNameError, paper_object
+from controllers.grasp.objects import random_convex_polygon, regular_polygon
+from controllers.grasp.polygon import parse_points
+
+
+def ray_hit(vertices: np.ndarray, theta: float) -> np.ndarray:
+    """Independent ray/segment intersection: where the ray from the origin at theta leaves."""
+    u = np.array([np.cos(theta), np.sin(theta)])
+    best = None
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
+        m = np.array([u, a - b]).T
+        if abs(np.linalg.det(m)) < 1e-14:
+            continue
+        r, s = np.linalg.solve(m, a)
+        if r > 0 and -1e-12 <= s <= 1 + 1e-12 and (best is None or r < best):
+            best = r
+    return best * u
+
+
+def test_from_vertices_centres_and_orients_ccw():
+    cw = [(1.0, 1.0), (1.0, 3.0), (4.0, 3.0), (4.0, 1.0)]  # clockwise rectangle
+    p = Polygon.from_vertices(cw)
+    assert p.area > 0  # CCW now
+    assert np.allclose(p.vertices.mean(axis=0), 0.0)
+    assert p.area == pytest.approx(6.0)
+    assert np.allclose(np.sort(p.offset), [1.0, 1.0, 1.5, 1.5])
+
+
+@pytest.mark.parametrize(
+    ("vertices", "message"),
+    [
+        ([(0, 0), (1, 0)], "at least 3 vertices"),
+        ([(0, 0), (1, 0), (float("nan"), 1)], "finite"),
+        ([(0, 0), (1, 0), (1, 0), (0, 1)], "repeats vertex"),
+        ([(0, 0), (1, 1), (2, 2)], "zero area"),
+        ([(0, 0), (2, 0), (1, 0.2), (1, 2)], "not convex"),
+        ("abc", "vertices"),
+    ],
+)
+def test_bad_polygons_are_refused(vertices, message):
+    with pytest.raises(PolygonError, match=message):
+        Polygon.from_vertices(vertices)
+
+
+def test_self_intersecting_star_is_refused():
+    a = np.arange(5) * 2 * (2 * np.pi / 5)  # pentagram: every left turn, winds twice
+    with pytest.raises(PolygonError, match="self-intersecting"):
+        Polygon.from_vertices(np.stack([np.cos(a), np.sin(a)], axis=1))
+
+
+@pytest.mark.parametrize("name", PAPER_OBJECTS)
+def test_locate_matches_ray_intersection(name):
+    p = paper_object(name)
+    theta = np.random.default_rng(0).uniform(-np.pi, np.pi, 200)
+    f = p.locate(theta)
+    expected = np.array([ray_hit(p.vertices, t) for t in theta])
+    assert np.allclose(f.point, expected, atol=1e-12)
+    # the point is on its edge's line, and the normal is the outward unit normal of that edge
+    assert np.allclose(np.einsum("ij,ij->i", f.point, f.normal), f.offset)
+    a, b = p.vertices[f.edge], p.vertices[(f.edge + 1) % p.n_edges]
+    edge = b - a
+    assert np.allclose(np.einsum("ij,ij->i", edge, f.normal), 0.0, atol=1e-12)
+    rel = f.point - a
+    cross = edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0]
+    assert np.all(cross >= -1e-15)  # the polygon lies left of a CCW edge
+
+
+def test_surface_coordinate_is_moment_of_unit_normal_force():
+    p = paper_object("irregular_hexagon")
+    f = p.locate(np.linspace(-3, 3, 50))
+    force = -f.normal
+    moment = f.point[:, 0] * force[:, 1] - f.point[:, 1] * force[:, 0]
+    assert np.allclose(f.surface, moment)
+
+
+@pytest.mark.parametrize("name", PAPER_OBJECTS)
+def test_unit_moment_scaling(name):
+    u = paper_object(name).unit_moment()
+    dense = u.locate(np.linspace(-np.pi, np.pi, 200_001))
+    assert np.abs(dense.surface).max() == pytest.approx(1.0, abs=1e-3)
+    assert u.max_moment == pytest.approx(1.0)
+
+
+def test_paper_objects_are_block_sized_and_named():
+    for name in PAPER_OBJECTS:
+        p = paper_object(name)
+        assert 0.03 < p.diameter < 0.065, name
+    assert paper_object("pentagon").n_edges == 5
+    with pytest.raises(UnknownNameError, match="valid: hexagon"):
+        paper_object("circle")
+
+
+def test_rotation_preserves_shape_and_moves_normals():
+    p = regular_polygon(4, 1.0, "sq")
+    r = p.rotated(np.pi / 6)
+    assert np.allclose(np.sort(r.offset), np.sort(p.offset))
+    assert np.allclose(np.sort(np.mod(r.normal_angle, 2 * np.pi)), np.sort(np.mod(p.normal_angle + np.pi / 6, 2 * np.pi)))
+
+
+def test_random_polygons_are_seeded_convex_and_exact():
+    a = random_convex_polygon(np.random.default_rng(3), sides=7)
+    b = random_convex_polygon(np.random.default_rng(3), sides=7)
+    assert np.array_equal(a.vertices, b.vertices)
+    assert a.n_edges == 7
+    assert a.diameter == pytest.approx(0.05)
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        q = random_convex_polygon(rng)
+        Polygon.from_vertices(q.vertices)  # re-validates convexity
+        assert 3 <= q.n_edges <= 8
+
+
+def test_parse_points():
+    assert parse_points("0,0; 1,0;1,1").shape == (3, 2)
+    with pytest.raises(PolygonError, match="x,y"):
+        parse_points("0,0;1")

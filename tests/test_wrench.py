@@ -1,0 +1,142 @@
+"""Wrench models, errors and gradients (Eq. 2-12) against finite differences and brute force."""
+
+import numpy as np
+import pytest
+
+from controllers.grasp import paper_object, regular_polygon
+from controllers.grasp.trials import PolygonBatch
+from controllers.grasp.wrench import (
+    eps_fc,
+    eps_mc,
+    fc_gradient,
+    fc_gradient_convex,
+    fc_minimizer,
+    mc_gradient,
+    mc_gradient_convex,
+    mc_minimizer,
+    mc_wrenches,
+    sufficiency,
+)
+
+H = 1e-6
+
+
+def test_eps_fc_values():
+    assert eps_fc(np.array([[0.0, np.pi]]))[0] == pytest.approx(0.0)
+    assert eps_fc(np.array([[0.3, 0.3]]))[0] == pytest.approx(1.0)
+    # a task wrench moves the minimum: t_f = (-1, 0) is met by both contacts at theta = 0
+    assert eps_fc(np.array([[0.0, 0.0]]), task=[-1.0, 0.0, 0.0])[0] == pytest.approx(0.0)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 6])
+def test_fc_gradient_eq6_matches_finite_differences(n):
+    theta = np.random.default_rng(n).uniform(-np.pi, np.pi, (20, n))
+    task = np.array([0.1, -0.2, 0.0])
+    g = fc_gradient(theta, task)
+    for k in range(n):
+        d = np.zeros_like(theta)
+        d[:, k] = H
+        fd = (eps_fc(theta + d, task) - eps_fc(theta - d, task)) / (2 * H)
+        assert np.allclose(g[:, k], fd, atol=1e-7)
+
+
+def test_fc_minimizer_eq8_is_the_brute_force_minimum():
+    theta = np.random.default_rng(1).uniform(-np.pi, np.pi, (10, 4))
+    star, eps_star = fc_minimizer(theta)
+    grid = np.linspace(-np.pi, np.pi, 20001)
+    for i in range(10):
+        for k in range(4):
+            t = np.repeat(theta[i : i + 1], grid.size, axis=0)
+            t[:, k] = grid
+            e = eps_fc(t)
+            assert eps_star[i, k] == pytest.approx(e.min(), abs=1e-8)
+            assert np.cos(star[i, k] - grid[np.argmin(e)]) > np.cos(1e-3)
+
+
+def test_convex_fc_gradient_eq7_is_a_descent_direction_with_the_same_minimum():
+    theta = np.random.default_rng(2).uniform(-np.pi, np.pi, (200, 4))
+    exact = fc_gradient(theta)
+    convex = fc_gradient_convex(theta)
+    significant = np.abs(exact) > 1e-9
+    assert np.all(np.sign(exact[significant]) == np.sign(convex[significant]))
+    star, _ = fc_minimizer(theta)
+    at_star = theta.copy()
+    at_star[:, 0] = star[:, 0]
+    assert np.allclose(fc_gradient_convex(at_star)[:, 0], 0.0, atol=1e-9)
+
+
+def _interior_thetas(poly, rng, shape, margin=0.05):
+    """Contact angles at least ``margin`` rad away from every vertex."""
+    theta = rng.uniform(-np.pi, np.pi, shape)
+    va = poly.vertex_angles
+    while True:
+        near = np.abs(np.angle(np.exp(1j * (theta[..., None] - va)))).min(-1) < margin
+        if not near.any():
+            return theta
+        theta[near] = rng.uniform(-np.pi, np.pi, near.sum())
+
+
+@pytest.mark.parametrize("name", ["square", "irregular_pentagon", "trapezoid"])
+def test_mc_gradient_matches_finite_differences_within_a_facet(name):
+    batch = PolygonBatch.of([paper_object(name)])
+    poly = batch.polygons[0]
+    theta = _interior_thetas(poly, np.random.default_rng(3), (30, 4))
+    idx = np.zeros(30, dtype=int)
+    task = np.array([0.0, 0.1, 0.2])
+    g = mc_gradient(batch.locate(idx, theta), theta, task)
+    for k in range(4):
+        d = np.zeros_like(theta)
+        d[:, k] = H
+        fd = (eps_mc(batch.locate(idx, theta + d), task) - eps_mc(batch.locate(idx, theta - d), task)) / (2 * H)
+        assert np.allclose(g[:, k], fd, atol=1e-6)
+
+
+def test_mc_minimizer_eq11_cancels_the_moment_when_it_lies_on_the_facet():
+    batch = PolygonBatch.of([paper_object("square")])
+    rng = np.random.default_rng(4)
+    theta = _interior_thetas(batch.polygons[0], rng, (200, 4))
+    idx = np.zeros(200, dtype=int)
+    frames = batch.locate(idx, theta)
+    star, eps_star = mc_minimizer(frames, theta)
+    moved = theta.copy()
+    moved[:, 0] = star[:, 0]
+    frames_star = batch.locate(idx, moved)
+    same_edge = frames_star.edge[:, 0] == frames.edge[:, 0]
+    assert same_edge.sum() > 20
+    w = mc_wrenches(frames_star)
+    assert np.allclose(w[same_edge, :, 2].mean(-1), 0.0, atol=1e-9)
+    assert np.allclose(eps_mc(frames_star)[same_edge], eps_star[same_edge, 0])
+
+
+def test_convex_mc_gradient_eq12_agrees_in_sign_with_the_exact_gradient():
+    batch = PolygonBatch.of([paper_object("rectangle")])
+    theta = _interior_thetas(batch.polygons[0], np.random.default_rng(5), (300, 4))
+    idx = np.zeros(300, dtype=int)
+    frames = batch.locate(idx, theta)
+    exact = mc_gradient(frames, theta)
+    convex = mc_gradient_convex(frames, theta)
+    significant = np.abs(exact) > 1e-6
+    assert np.all(np.sign(exact[significant]) == np.sign(convex[significant]))
+
+
+@pytest.mark.parametrize("sides", [3, 4, 5, 6, 7, 8])
+def test_lemma_3_both_contacts_get_the_same_mc_gradient(sides):
+    """Appendix B, Lemma .3: two antipodal contacts on a regular polygon move together."""
+    batch = PolygonBatch.of([regular_polygon(sides, 1.0, "reg")])
+    theta0 = np.random.default_rng(sides).uniform(-np.pi, np.pi, 100)
+    theta = np.stack([theta0, theta0 + np.pi], axis=1)
+    g = mc_gradient_convex(batch.locate(np.zeros(100, dtype=int), theta), theta)
+    assert np.allclose(g[:, 0], g[:, 1], atol=1e-9)
+
+
+def test_sufficiency_eq2_with_mc_wrenches_is_eps_mc():
+    batch = PolygonBatch.of([paper_object("hexagon")])
+    theta = np.random.default_rng(6).uniform(-np.pi, np.pi, (50, 4))
+    frames = batch.locate(np.zeros(50, dtype=int), theta)
+    task = np.array([0.2, 0.0, -0.1])
+    assert np.allclose(sufficiency(mc_wrenches(frames), task), eps_mc(frames, task))
+
+
+def test_bad_task_is_refused():
+    with pytest.raises(ValueError, match="t_fx, t_fy, t_mz"):
+        eps_fc(np.zeros((1, 2)), task=[1.0, 2.0])
