@@ -33,11 +33,17 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     n = args.trials * len(PAPER_OBJECTS)
-    best = min((bench_trials(args.trials, seed) for seed in range(args.repeats)), key=lambda r: r[0])
+    best = min(
+        (bench_trials(args.trials, seed) for seed in range(args.repeats)), key=lambda r: r[0]
+    )
     total, scoring, steps = best
-    print(f"knowledge-based trials: {n} trials (200 x 9 objects) in {total:.2f} s "
-          f"-> {n / total:.0f} trials/s (mean {steps:.1f} steps/trial, best of {args.repeats})")
-    print(f"  of which S_G scoring: {scoring:.2f} s -> {n / scoring:.0f} S_G solves/s (clarabel LP)")
+    print(
+        f"knowledge-based trials: {n} trials (200 x 9 objects) in {total:.2f} s "
+        f"-> {n / total:.0f} trials/s (mean {steps:.1f} steps/trial, best of {args.repeats})"
+    )
+    print(
+        f"  of which S_G scoring: {scoring:.2f} s -> {n / scoring:.0f} S_G solves/s (clarabel LP)"
+    )
     print(f"  control steps: {n * steps / (total - scoring):.0f} contact-configuration steps/s")
 
 

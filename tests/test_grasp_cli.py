@@ -11,7 +11,9 @@ from controllers.grasp import grasp_score, paper_object
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "controllers.grasp", *args], capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "controllers.grasp", *args], capture_output=True, text=True
+    )
 
 
 def test_trials_json_is_consistent(tmp_path):
@@ -21,20 +23,34 @@ def test_trials_json_is_consistent(tmp_path):
     data = json.loads(out.read_text())
     trials = data["trials"]
     assert len(trials) == 60
-    assert data["summary"]["failure_rate"] == pytest.approx(1 - np.mean([t["success"] for t in trials]))
+    assert data["summary"]["failure_rate"] == pytest.approx(
+        1 - np.mean([t["success"] for t in trials])
+    )
     assert f"{100 * data['summary']['failure_rate']:.2f} %" in p.stdout
     # re-score one trial's final points independently: the JSON's S_G is the metric's
     poly = paper_object("square")
     unit = poly.unit_moment()
     t = next(t for t in trials if t["feasible"])
     frames = unit.locate(np.array(t["theta_final"]))
-    assert np.allclose(np.array(t["points"]), poly.locate(np.array(t["theta_final"])).point, atol=1e-9)
+    assert np.allclose(
+        np.array(t["points"]), poly.locate(np.array(t["theta_final"])).point, atol=1e-9
+    )
     assert grasp_score(frames.point, frames.normal).s_g == pytest.approx(t["s_g"], abs=1e-6)
     assert t["success"] == (t["s_g"] <= 0.4)
 
 
 def test_trials_on_a_user_polygon_rotated():
-    p = run("trials", "--polygon", "0,0;3,0;3,1;0,1", "--rotate", "30", "--trials", "20", "--contacts", "3")
+    p = run(
+        "trials",
+        "--polygon",
+        "0,0;3,0;3,1;0,1",
+        "--rotate",
+        "30",
+        "--trials",
+        "20",
+        "--contacts",
+        "3",
+    )
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith("user: 20 trials")
 
@@ -52,7 +68,10 @@ def test_score_command():
         (("trials", "--object", "circle"), "unknown object 'circle'"),
         (("trials", "--polygon", "0,0;2,0;1,0.2;1,2"), "not convex"),
         (("trials", "--controller", "magic"), "unknown controller 'magic'"),
-        (("score", "--polygon", "0,0;2,0;2,2;0,2", "--points", "1,1;2,1"), "away from the polygon outline"),
+        (
+            ("score", "--polygon", "0,0;2,0;2,2;0,2", "--points", "1,1;2,1"),
+            "away from the polygon outline",
+        ),
         (("score", "--polygon", "0,0;1,0", "--points", "0,0"), "at least 3 vertices"),
     ],
 )

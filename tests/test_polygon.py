@@ -99,7 +99,10 @@ def test_rotation_preserves_shape_and_moves_normals():
     p = regular_polygon(4, 1.0, "sq")
     r = p.rotated(np.pi / 6)
     assert np.allclose(np.sort(r.offset), np.sort(p.offset))
-    assert np.allclose(np.sort(np.mod(r.normal_angle, 2 * np.pi)), np.sort(np.mod(p.normal_angle + np.pi / 6, 2 * np.pi)))
+    assert np.allclose(
+        np.sort(np.mod(r.normal_angle, 2 * np.pi)),
+        np.sort(np.mod(p.normal_angle + np.pi / 6, 2 * np.pi)),
+    )
 
 
 def test_random_polygons_are_seeded_convex_and_exact():

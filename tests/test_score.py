@@ -42,9 +42,10 @@ def test_three_against_one_is_unbalanced():
     assert grasp_score(pts, nrm).s_g == pytest.approx(0.5, abs=1e-6)
 
 
-def linprog_score(points, normals, task=np.zeros(3), mu=1.0):
+def linprog_score(points, normals, task=None, mu=1.0):
     """Independent S_G with scipy/HiGHS over x = [N, T+, T-]."""
     p, nrm = np.asarray(points, float), np.asarray(normals, float)
+    task = np.zeros(3) if task is None else task
     n = len(p)
     tan = np.stack([-nrm[:, 1], nrm[:, 0]], 1)
     cols = []
@@ -52,8 +53,15 @@ def linprog_score(points, normals, task=np.zeros(3), mu=1.0):
         cols.append(np.stack([f[:, 0], f[:, 1], p[:, 0] * f[:, 1] - p[:, 1] * f[:, 0]]) / n)
     a_eq = np.hstack(cols)
     a_ub = np.hstack([-mu * np.eye(n), np.eye(n), np.eye(n)])
-    res = linprog(np.ones(3 * n), A_ub=a_ub, b_ub=np.zeros(n), A_eq=a_eq, b_eq=task,
-                  bounds=[(1, None)] * n + [(0, None)] * (2 * n), method="highs")
+    res = linprog(
+        np.ones(3 * n),
+        A_ub=a_ub,
+        b_ub=np.zeros(n),
+        A_eq=a_eq,
+        b_eq=task,
+        bounds=[(1, None)] * n + [(0, None)] * (2 * n),
+        method="highs",
+    )
     return res.fun / n - 1.0 if res.status == 0 else None
 
 

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from controllers.grasp import KnowledgeBased, luce_activation, paper_object, regular_polygon, run_trials
+from controllers.grasp import (
+    KnowledgeBased,
+    luce_activation,
+    paper_object,
+    regular_polygon,
+    run_trials,
+)
 from controllers.grasp.experiments import PAPER_TABLE1_KB, table1_rows
 from controllers.grasp.trials import CONVERGENCE_STEP, PolygonBatch
 from controllers.grasp.wrench import mc_residual
@@ -17,15 +23,22 @@ def test_luce_rule_switches_at_the_fc_threshold():
     assert a[2] > 1 - 1e-8
     # the paper's formula, computed directly
     direct = np.exp(4000 * 0.004 - 10) / (np.exp(4000 * 0.004 - 10) + np.exp(0 + 10))
-    assert luce_activation(np.array([0.004]), np.zeros(1), 4000.0, 0.0, -10.0)[0] == pytest.approx(direct)
+    assert luce_activation(np.array([0.004]), np.zeros(1), 4000.0, 0.0, -10.0)[0] == pytest.approx(
+        direct
+    )
 
 
 @pytest.mark.parametrize("sides", [3, 4, 5, 6, 7, 8])
 def test_theorem_b1_two_contacts_on_regular_polygons(sides):
     """Appendix B: from any start, FC closes the forces, then MC cancels the moment residual."""
     poly = regular_polygon(sides, 0.025, f"regular{sides}")
-    result = run_trials([poly], np.zeros(200, dtype=int), KnowledgeBased(), np.random.default_rng(sides),
-                        n_contacts=2)
+    result = run_trials(
+        [poly],
+        np.zeros(200, dtype=int),
+        KnowledgeBased(),
+        np.random.default_rng(sides),
+        n_contacts=2,
+    )
     assert result.converged.all()
     assert result.eps_fc.max() < 0.005  # below the Luce switching threshold (tau of Appendix B)
     frames = PolygonBatch.of([poly]).locate(result.object_index, result.theta_final)
@@ -42,20 +55,37 @@ def test_seeded_trials_are_reproducible_and_batch_independent():
     assert np.array_equal(a.theta_final, b.theta_final) and np.array_equal(a.s_g, b.s_g)
     # each trial run alone from the same start ends in the same place
     for i in range(len(idx)):
-        single = run_trials([polys[idx[i]]], [0], KnowledgeBased(), np.random.default_rng(0),
-                            theta_initial=a.theta_initial[i : i + 1])
+        single = run_trials(
+            [polys[idx[i]]],
+            [0],
+            KnowledgeBased(),
+            np.random.default_rng(0),
+            theta_initial=a.theta_initial[i : i + 1],
+        )
         assert np.allclose(single.theta_final[0], a.theta_final[i])
         assert single.steps[0] == a.steps[i]
 
 
 def test_convergence_means_the_last_step_was_small():
     poly = paper_object("hexagon")
-    r = run_trials([poly], np.zeros(50, dtype=int), KnowledgeBased(), np.random.default_rng(2), record_states=True)
+    r = run_trials(
+        [poly],
+        np.zeros(50, dtype=int),
+        KnowledgeBased(),
+        np.random.default_rng(2),
+        record_states=True,
+    )
     assert r.converged.all()
     # re-run each trial one step short of its end: the last step moved at most CONVERGENCE_STEP
     for i in range(5):
-        short = run_trials([poly], [0], KnowledgeBased(), np.random.default_rng(0),
-                           theta_initial=r.theta_initial[i : i + 1], max_steps=int(r.steps[i]) - 1)
+        short = run_trials(
+            [poly],
+            [0],
+            KnowledgeBased(),
+            np.random.default_rng(0),
+            theta_initial=r.theta_initial[i : i + 1],
+            max_steps=int(r.steps[i]) - 1,
+        )
         last = np.angle(np.exp(1j * (r.theta_final[i] - short.theta_final[0])))
         assert np.abs(last).max() <= CONVERGENCE_STEP + 1e-12
     # recorded state paths end where the trials end
@@ -79,4 +109,6 @@ def test_table1_knowledge_based_reproduces_the_papers_phenomenon():
 
 def test_bad_trial_arguments_are_refused():
     with pytest.raises(ValueError, match="at least 2 contacts"):
-        run_trials([paper_object("square")], [0], KnowledgeBased(), np.random.default_rng(0), n_contacts=1)
+        run_trials(
+            [paper_object("square")], [0], KnowledgeBased(), np.random.default_rng(0), n_contacts=1
+        )

@@ -87,7 +87,9 @@ def test_mc_gradient_matches_finite_differences_within_a_facet(name):
     for k in range(4):
         d = np.zeros_like(theta)
         d[:, k] = H
-        fd = (eps_mc(batch.locate(idx, theta + d), task) - eps_mc(batch.locate(idx, theta - d), task)) / (2 * H)
+        fd = (
+            eps_mc(batch.locate(idx, theta + d), task) - eps_mc(batch.locate(idx, theta - d), task)
+        ) / (2 * H)
         assert np.allclose(g[:, k], fd, atol=1e-6)
 
 

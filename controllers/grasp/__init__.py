@@ -5,8 +5,18 @@ of graspsim, so it can be used on its own.
 """
 
 from controllers.grasp.composition import Composer, KnowledgeBased, luce_activation
-from controllers.grasp.errors import GraspError, ModelNotTrainedError, PolygonError, UnknownNameError
-from controllers.grasp.objects import PAPER_OBJECTS, paper_object, random_convex_polygon, regular_polygon
+from controllers.grasp.errors import (
+    GraspError,
+    ModelNotTrainedError,
+    PolygonError,
+    UnknownNameError,
+)
+from controllers.grasp.objects import (
+    PAPER_OBJECTS,
+    paper_object,
+    random_convex_polygon,
+    regular_polygon,
+)
 from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts
 from controllers.grasp.score import SUCCESS_THRESHOLD, GraspScore, grasp_score
 from controllers.grasp.state import ControlState

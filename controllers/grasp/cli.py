@@ -16,7 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from controllers.grasp.errors import GraspError, PolygonError
-from controllers.grasp.experiments import PAPER_TABLE1_AVERAGE, PAPER_TABLE1_KB, table1_rows, trial_summary
+from controllers.grasp.experiments import (
+    PAPER_TABLE1_AVERAGE,
+    PAPER_TABLE1_KB,
+    table1_rows,
+    trial_summary,
+)
 from controllers.grasp.objects import PAPER_LABELS, PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import Polygon, centroid_of, parse_points
 from controllers.grasp.registry import COMPOSERS, DEFAULT_MODEL_DIR, make_composer
@@ -48,15 +53,28 @@ def cmd_trials(args: argparse.Namespace) -> int:
     batch = PolygonBatch.of([poly])
     start = time.perf_counter()
     result = run_trials(
-        [poly], np.zeros(args.trials, dtype=int), composer, rng,
-        n_contacts=args.contacts, max_steps=args.max_steps, gain=args.gain, batch=batch,
+        [poly],
+        np.zeros(args.trials, dtype=int),
+        composer,
+        rng,
+        n_contacts=args.contacts,
+        max_steps=args.max_steps,
+        gain=args.gain,
+        batch=batch,
     )
     elapsed = time.perf_counter() - start
     summary = trial_summary(result, elapsed)
-    summary.update(object=poly.name, controller=args.controller, seed=args.seed, contacts=args.contacts,
-                   rotate_deg=args.rotate, gain=args.gain)
+    summary.update(
+        object=poly.name,
+        controller=args.controller,
+        seed=args.seed,
+        contacts=args.contacts,
+        rotate_deg=args.rotate,
+        gain=args.gain,
+    )
     print(
-        f"{poly.name}: {args.trials} trials, {args.controller}: failure {100 * summary['failure_rate']:.2f} %, "
+        f"{poly.name}: {args.trials} trials, {args.controller}: "
+        f"failure {100 * summary['failure_rate']:.2f} %, "
         f"mean S_G {summary['mean_s_g']:.3f}, mean steps {summary['mean_steps']:.1f}, "
         f"{summary['trials_per_s']:.0f} trials/s"
     )
@@ -75,7 +93,9 @@ def cmd_trials(args: argparse.Namespace) -> int:
         }
         for i in range(args.trials)
     ]
-    _write_json(args.json, {"summary": summary, "vertices": poly.vertices.tolist(), "trials": per_trial})
+    _write_json(
+        args.json, {"summary": summary, "vertices": poly.vertices.tolist(), "trials": per_trial}
+    )
     return 0
 
 
@@ -90,7 +110,7 @@ def cmd_score(args: argparse.Namespace) -> int:
     if bad.size:
         i = int(bad[0])
         raise PolygonError(
-            f"point {i} ({points[i, 0] + centroid_of(raw)[0]:g}, {points[i, 1] + centroid_of(raw)[1]:g}) "
+            f"point {i} {tuple(float(c) for c in points[i] + centroid_of(raw))} "
             f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
         )
     scale = 1.0 / poly.max_moment
@@ -100,9 +120,16 @@ def cmd_score(args: argparse.Namespace) -> int:
         print(f"S_G = {score.s_g:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
     else:
         print("infeasible: no contact forces satisfy the constraints (a failure)")
-    _write_json(args.json, {"feasible": score.feasible, "s_g": score.s_g if score.feasible else None,
-                            "success": score.success, "normal_forces": score.normal_forces.tolist(),
-                            "tangential_forces": score.tangential_forces.tolist()})
+    _write_json(
+        args.json,
+        {
+            "feasible": score.feasible,
+            "s_g": score.s_g if score.feasible else None,
+            "success": score.success,
+            "normal_forces": score.normal_forces.tolist(),
+            "tangential_forces": score.tangential_forces.tolist(),
+        },
+    )
     return 0
 
 
@@ -110,11 +137,15 @@ def cmd_table1(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     rows = table1_rows(args.trials, args.seed, gain=args.gain)
     elapsed = time.perf_counter() - start
-    print(f"Table 1, knowledge-based composition: {args.trials} trials per object, seed {args.seed}")
+    print(
+        f"Table 1, knowledge-based composition: {args.trials} trials per object, seed {args.seed}"
+    )
     print(f"{'Object':18s} {'ours (%)':>9s} {'paper (%)':>10s} {'mean S_G':>9s} {'steps':>6s}")
     for r in rows:
-        print(f"{PAPER_LABELS[r['object']]:18s} {100 * r['failure_rate']:9.2f} "
-              f"{PAPER_TABLE1_KB[r['object']]:10.2f} {r['mean_s_g']:9.3f} {r['mean_steps']:6.1f}")
+        print(
+            f"{PAPER_LABELS[r['object']]:18s} {100 * r['failure_rate']:9.2f} "
+            f"{PAPER_TABLE1_KB[r['object']]:10.2f} {r['mean_s_g']:9.3f} {r['mean_steps']:6.1f}"
+        )
     avg = float(np.mean([r["failure_rate"] for r in rows]))
     paper_avg = PAPER_TABLE1_AVERAGE["kb"]
     print(f"{'Average':18s} {100 * avg:9.2f} {paper_avg:10.2f}")
@@ -124,7 +155,9 @@ def cmd_table1(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m controllers.grasp", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="python -m controllers.grasp", description=__doc__.splitlines()[0]
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     t = sub.add_parser("trials", help="run grasp trials on one object")

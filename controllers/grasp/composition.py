@@ -32,8 +32,11 @@ class Composer(Protocol):
         """The batch ended; ``success`` is each trial's outcome (S_G <= 0.4)."""
 
 
-def luce_activation(eps_fc: NDArray[np.float64], eps_mc: NDArray[np.float64], k_fc: float, k_mc: float, b: float):
-    """Luce's rule (section 3.6.1): alpha_FC = e^(k_FC eps_FC + b) / (e^(k_FC eps_FC + b) + e^(k_MC eps_MC - b)).
+def luce_activation(
+    eps_fc: NDArray[np.float64], eps_mc: NDArray[np.float64], k_fc: float, k_mc: float, b: float
+):
+    """Luce's rule (section 3.6.1):
+    alpha_FC = e^(k_FC eps_FC + b) / (e^(k_FC eps_FC + b) + e^(k_MC eps_MC - b)).
 
     Computed as a logistic of the exponent difference so that it never overflows.
     """

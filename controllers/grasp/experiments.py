@@ -58,12 +58,22 @@ def table1_rows(trials: int = 200, seed: int = 0, gain: float = GAIN) -> list[di
     """Run ``trials`` knowledge-based trials on each paper object (all objects in one batch)."""
     polys = [paper_object(n) for n in PAPER_OBJECTS]
     idx = np.repeat(np.arange(len(polys)), trials)
-    result = run_trials(polys, idx, KnowledgeBased(), np.random.default_rng(seed), gain=gain,
-                        batch=PolygonBatch.of(polys))
+    result = run_trials(
+        polys,
+        idx,
+        KnowledgeBased(),
+        np.random.default_rng(seed),
+        gain=gain,
+        batch=PolygonBatch.of(polys),
+    )
     rows = []
     for i, name in enumerate(PAPER_OBJECTS):
         m = idx == i
-        sub = TrialBatch(*(getattr(result, f)[m] if getattr(result, f) is not None else None
-                           for f in result.__dataclass_fields__))
+        sub = TrialBatch(
+            *(
+                getattr(result, f)[m] if getattr(result, f) is not None else None
+                for f in result.__dataclass_fields__
+            )
+        )
         rows.append({"object": name, **trial_summary(sub)})
     return rows

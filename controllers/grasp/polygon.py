@@ -1,9 +1,9 @@
 """Planar convex polygon objects and the paper's contact coordinate.
 
 A contact is located by ``theta``, its polar angle about the polygon centroid (Appendix B of the
-paper). A contact on edge ``j`` (outward normal at angle ``normal_angle[j]``, at distance ``offset[j]``
-from the centroid) sits at ``r(theta) = offset[j] / cos(theta - normal_angle[j])`` and has the
-surface coordinate ``s = offset[j] * tan(theta - normal_angle[j])`` along the edge's CCW tangent;
+paper). A contact on edge ``j`` (outward normal at angle ``normal_angle[j]``, at distance
+``offset[j]`` from the centroid) sits at ``r(theta) = offset[j] / cos(theta - normal_angle[j])``
+and has the surface coordinate ``s = offset[j] * tan(theta - normal_angle[j])`` along the edge's CCW tangent;
 ``s`` is also the moment ``m_z`` of a unit inward normal force there (Eq. 9 with phi = 0).
 """
 
@@ -51,8 +51,12 @@ def locate_contacts(
     with np.errstate(divide="ignore", invalid="ignore"):
         dist = np.where(facing > 1e-12, offset[..., None, :] / facing, np.inf)
     edge = np.argmin(dist, axis=-1)
-    nang = np.take_along_axis(np.broadcast_to(normal_angle[..., None, :], rel.shape), edge[..., None], -1)[..., 0]
-    off = np.take_along_axis(np.broadcast_to(offset[..., None, :], rel.shape), edge[..., None], -1)[..., 0]
+    nang = np.take_along_axis(
+        np.broadcast_to(normal_angle[..., None, :], rel.shape), edge[..., None], -1
+    )[..., 0]
+    off = np.take_along_axis(np.broadcast_to(offset[..., None, :], rel.shape), edge[..., None], -1)[
+        ..., 0
+    ]
     radius = np.take_along_axis(dist, edge[..., None], -1)[..., 0]
     point = radius[..., None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)
     normal = np.stack([np.cos(nang), np.sin(nang)], axis=-1)
@@ -141,7 +145,10 @@ class Polygon:
         if area < 0.0:
             v = v[::-1].copy()
             edges = np.roll(v, -1, axis=0) - v
-        turn = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+        turn = (
+            edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1]
+            - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+        )
         if np.any(turn < -RELATIVE_TOLERANCE * size**2):
             i = int((np.flatnonzero(turn < -RELATIVE_TOLERANCE * size**2)[0] + 1) % len(v))
             raise PolygonError(
@@ -151,7 +158,9 @@ class Polygon:
         heading = np.unwrap(np.arctan2(edges[:, 1], edges[:, 0]))
         total_turn = heading[-1] - heading[0] + _wrap(heading[0] - heading[-1])
         if total_turn > 2.0 * np.pi + 1e-6:
-            raise PolygonError(f"polygon {name!r} is self-intersecting (its outline winds more than once)")
+            raise PolygonError(
+                f"polygon {name!r} is self-intersecting (its outline winds more than once)"
+            )
         return cls(vertices=v - centroid, name=name)
 
     # --- derived geometry -------------------------------------------------------------------
@@ -189,7 +198,7 @@ class Polygon:
         return Polygon(vertices=self.vertices * factor, name=self.name)
 
     def unit_moment(self) -> Polygon:
-        """The copy scaled so that the maximum moment is 1 (section 3.4, 'maximum moment unitary')."""
+        """Copy scaled so that the maximum moment is 1 (section 3.4, 'maximum moment unitary')."""
         return self.scaled(1.0 / self.max_moment)
 
     def rotated(self, angle: float) -> Polygon:
@@ -228,9 +237,13 @@ wrap_angle = _wrap
 def parse_points(text: str, what: str = "polygon") -> NDArray[np.float64]:
     """Parse ``"x,y;x,y;..."`` (the CLI's polygon and point format) into an (k, 2) array."""
     try:
-        rows = [tuple(float(c) for c in part.split(",")) for part in text.strip().strip(";").split(";")]
+        rows = [
+            tuple(float(c) for c in part.split(",")) for part in text.strip().strip(";").split(";")
+        ]
     except ValueError as e:
         raise PolygonError(f"{what} must be written 'x,y;x,y;...', got {text!r}") from e
     if any(len(r) != 2 for r in rows):
-        raise PolygonError(f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {text!r}")
+        raise PolygonError(
+            f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {text!r}"
+        )
     return np.array(rows, dtype=float)

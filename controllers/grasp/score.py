@@ -60,7 +60,9 @@ def grasp_score(
     nrm = np.asarray(normals, dtype=float).reshape(-1, 2)
     n = p.shape[0]
     if nrm.shape[0] != n or n < 1:
-        raise ValueError(f"need as many normals as points, got {n} points and {nrm.shape[0]} normals")
+        raise ValueError(
+            f"need as many normals as points, got {n} points and {nrm.shape[0]} normals"
+        )
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(nrm))):
         raise ValueError("contact points and normals must be finite")
     t = np.zeros(3) if task is None else np.asarray(task, dtype=float).reshape(3)

@@ -104,19 +104,25 @@ class TrialBatch:
         return float(1.0 - self.success.mean())
 
 
-def random_contacts(rng: np.random.Generator, n_trials: int, n_contacts: int) -> NDArray[np.float64]:
+def random_contacts(
+    rng: np.random.Generator, n_trials: int, n_contacts: int
+) -> NDArray[np.float64]:
     """Initial contact coordinates, uniform on [0, 2 pi)."""
     return rng.uniform(0.0, 2.0 * np.pi, size=(n_trials, n_contacts))
 
 
 def score_contacts(
-    batch: PolygonBatch, object_index: NDArray[np.int64], theta: NDArray[np.float64], task: ArrayLike | None = None
+    batch: PolygonBatch,
+    object_index: NDArray[np.int64],
+    theta: NDArray[np.float64],
+    task: ArrayLike | None = None,
 ) -> list[GraspScore]:
     """S_G of each configuration (one LP per trial)."""
     frames = batch.locate(object_index, theta)
     t = None if task is None else np.broadcast_to(np.asarray(task, float), (theta.shape[0], 3))
     return [
-        grasp_score(frames.point[i], frames.normal[i], None if t is None else t[i]) for i in range(theta.shape[0])
+        grasp_score(frames.point[i], frames.normal[i], None if t is None else t[i])
+        for i in range(theta.shape[0])
     ]
 
 

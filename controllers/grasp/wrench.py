@@ -65,7 +65,9 @@ def fc_minimizer(theta: NDArray[np.float64], task: ArrayLike | None = None):
     return theta_star, eps_star
 
 
-def fc_gradient_convex(theta: NDArray[np.float64], task: ArrayLike | None = None) -> NDArray[np.float64]:
+def fc_gradient_convex(
+    theta: NDArray[np.float64], task: ArrayLike | None = None
+) -> NDArray[np.float64]:
     """Convex FC gradient (Eq. 7): 2 (eps_FC - eps_FC*) / (theta_k - theta_k*), per contact."""
     theta_star, eps_star = fc_minimizer(theta, task)
     eps = eps_fc(theta, task)[:, None]
@@ -116,7 +118,9 @@ def mc_minimizer(frames: ContactFrames, theta: NDArray[np.float64], task: ArrayL
     return theta_star, eps_star
 
 
-def mc_gradient_convex(frames: ContactFrames, theta: NDArray[np.float64], task: ArrayLike | None = None):
+def mc_gradient_convex(
+    frames: ContactFrames, theta: NDArray[np.float64], task: ArrayLike | None = None
+):
     """Convex MC gradient (Eq. 12): 2 (eps_MC - eps_MC*) / (theta_k - theta_k*), per contact."""
     theta_star, eps_star = mc_minimizer(frames, theta, task)
     eps = eps_mc(frames, task)[:, None]
@@ -129,7 +133,9 @@ def _convex_slope(rise: NDArray[np.float64], run: NDArray[np.float64]) -> NDArra
     return np.where(safe, 2.0 * np.maximum(rise, 0.0) / np.where(safe, run, 1.0), 0.0)
 
 
-def sufficiency(wrenches: NDArray[np.float64], task: ArrayLike | None = None) -> NDArray[np.float64]:
+def sufficiency(
+    wrenches: NDArray[np.float64], task: ArrayLike | None = None
+) -> NDArray[np.float64]:
     """The stable grasp sufficiency metric of Eq. 2 for any wrench model, wrenches (T, n, d)."""
     t = np.zeros(wrenches.shape[-1]) if task is None else np.asarray(task, dtype=float)
     rho = t - wrenches.mean(axis=-2)
