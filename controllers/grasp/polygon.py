@@ -1,10 +1,10 @@
 """Planar convex polygon objects and the paper's contact coordinate.
 
 A contact is located by ``theta``, its polar angle about the polygon centroid (Appendix B of the
-paper). A contact on edge ``j`` (outward normal at angle ``normal_angle[j]``, at distance
-``offset[j]`` from the centroid) sits at ``r(theta) = offset[j] / cos(theta - normal_angle[j])``
-and has the surface coordinate ``s = offset[j] * tan(theta - normal_angle[j])`` along the edge's
-CCW tangent; ``s`` is also the moment ``m_z`` of a unit inward normal force there (Eq. 9 with phi = 0).
+paper). On edge ``j`` (outward normal at angle ``a_j = normal_angle[j]``, line at distance
+``d_j = offset[j]`` from the centroid) the contact sits at radius ``d_j / cos(theta - a_j)`` and
+has the surface coordinate ``s = d_j * tan(theta - a_j)`` along the edge's CCW tangent; ``s`` is
+also the moment ``m_z`` of a unit inward normal force there (Eq. 9 with phi = 0).
 """
 
 from __future__ import annotations
