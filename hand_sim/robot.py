@@ -1,0 +1,66 @@
+"""Names of the robot's MJCF elements: the GE P50-style arm and the Utah/MIT-style hand (section 5).
+
+The models in ``models/`` use Menagerie-style names; once :mod:`hand_sim.world` attaches them,
+dm_control prefixes every arm name with ``arm/`` and every hand name with ``arm/hand/``.
+:func:`qualified` turns a bare name into the compiled model's name.
+"""
+
+from __future__ import annotations
+
+from hand_sim.errors import HandSimError
+
+#: Model names given to the attached arm and hand (they become the dm_control name prefixes).
+ARM_MODEL, HAND_MODEL = "arm", "hand"
+ARM_PREFIX = ARM_MODEL + "/"
+HAND_PREFIX = ARM_PREFIX + HAND_MODEL + "/"
+
+#: The arm's five revolute joints, base to wrist (GE P50: waist, shoulder, elbow, wrist pitch/roll).
+ARM_JOINTS: tuple[str, ...] = ("waist", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
+#: The arm's position actuators, one per joint, in ARM_JOINTS order.
+ARM_ACTUATORS: tuple[str, ...] = ARM_JOINTS
+#: Site of the arm's flange where the hand mounts, and the arm's keyframe of its rest posture.
+ATTACHMENT_SITE = "attachment_site"
+HOME_KEYFRAME = "home"
+
+#: Fingers of the hand: first, middle, ring and the opposed thumb.
+FINGERS: tuple[str, ...] = ("ff", "mf", "rf", "th")
+#: Joints per finger: abduction (j0) then three flexions (j1..j3).
+JOINTS_PER_FINGER = 4
+HAND_JOINTS: tuple[str, ...] = tuple(f"{f}j{i}" for f in FINGERS for i in range(JOINTS_PER_FINGER))
+HAND_ACTUATORS: tuple[str, ...] = tuple(
+    f"{f}a{i}" for f in FINGERS for i in range(JOINTS_PER_FINGER)
+)
+FINGERTIP_SITES: tuple[str, ...] = tuple(f"{f}_tip" for f in FINGERS)
+TOUCH_SENSORS: tuple[str, ...] = tuple(f"{f}_touch" for f in FINGERS)
+PALM_BODY = "palm"
+
+_ARM_NAMES = frozenset((*ARM_JOINTS, *ARM_ACTUATORS, ATTACHMENT_SITE))
+_HAND_NAMES = frozenset(
+    (*HAND_JOINTS, *HAND_ACTUATORS, *FINGERTIP_SITES, *TOUCH_SENSORS, PALM_BODY)
+)
+
+
+def qualified(name: str) -> str:
+    """The compiled model's name of the arm or hand element ``name`` (e.g. ``ffj0`` ->
+    ``arm/hand/ffj0``, ``elbow`` -> ``arm/elbow``).
+
+    Names of other elements of the models are qualified with :func:`arm_name`/:func:`hand_name`.
+    Raises :class:`HandSimError` listing the known names.
+    """
+    if name in _HAND_NAMES:
+        return HAND_PREFIX + name
+    if name in _ARM_NAMES:
+        return ARM_PREFIX + name
+    raise HandSimError(
+        f"unknown robot element {name!r}; valid: {', '.join(sorted(_ARM_NAMES | _HAND_NAMES))}"
+    )
+
+
+def arm_name(name: str) -> str:
+    """Any element name of models/arm.xml as it appears in the compiled world model."""
+    return ARM_PREFIX + name
+
+
+def hand_name(name: str) -> str:
+    """Any element name of models/hand.xml as it appears in the compiled world model."""
+    return HAND_PREFIX + name

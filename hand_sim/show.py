@@ -1,0 +1,188 @@
+"""Demo: ``python -m hand_sim.show --scene clutter3 --out DIR``.
+
+Builds a scene (section 5's table of blocks, the arm and the hand), lets the blocks settle, saves
+the overhead image as ``DIR/overhead.png`` and records to ``DIR/episode.rrd`` the arm moving
+through a few joint targets (with the hand closing and opening), so the models can be inspected in
+the rerun viewer (``rerun DIR/episode.rrd``). Errors print one line on stderr and exit with 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from hand_sim.camera import OverheadCamera
+from hand_sim.errors import HandSimError
+from hand_sim.recorder import Recorder
+from hand_sim.robot import ARM_JOINTS, FINGERS
+from hand_sim.scene import load_scene
+from hand_sim.world import World
+
+#: Simulated seconds for the blocks to settle before the overhead picture.
+SETTLE_S = 0.5
+#: Seconds per move between two joint targets (linear ramp of the servo targets), then hold.
+MOVE_S, HOLD_S = 1.5, 0.3
+#: Log the 3D scene every this many physics steps (20 ms: 50 frames per simulated second).
+LOG_EVERY = 10
+#: Arm waypoints (rad, ARM_JOINTS order), each with the hand open (False) or half closed (True):
+#: tool pointing down with the flange 0.40-0.45 m above the table top (over its centre, then to
+#: either side, rolling the wrist), then back to the ``home`` keyframe (None).
+ARM_WAYPOINTS: tuple[tuple[tuple[float, ...] | None, bool], ...] = (
+    ((0.0, 0.272, 1.969, 0.9, 0.0), False),
+    ((-0.278, 0.451, 1.706, 0.984, 0.8), True),
+    ((0.261, 0.479, 1.56, 1.103, -0.8), False),
+    (None, False),
+)
+#: Fraction of each hand joint's range used for the "closed" posture.
+HAND_CLOSE_FRACTION = 0.5
+EXIT_BAD_INPUT = 2
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Files written by the demo and what happened in it."""
+
+    rrd: Path  #: the rerun recording
+    png: Path  #: the overhead image after settling
+    sim_time: float  #: simulated seconds
+    max_block_shift: float  #: largest displacement (m) of any block from its scene pose
+    min_fingertip_z: float  #: lowest fingertip height (m) seen at the logged frames
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="python -m hand_sim.show", description=__doc__.splitlines()[0])
+    p.add_argument(
+        "--scene", default="clutter3", help="scene name or .toml path (default clutter3)"
+    )
+    p.add_argument("--seed", type=int, default=None, help="seed of --scene random")
+    p.add_argument("--blocks", type=int, default=None, help="number of blocks of --scene random")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--width", type=int, default=640, help="overhead image width (px)")
+    p.add_argument("--height", type=int, default=480, help="overhead image height (px)")
+    return p.parse_args(argv)
+
+
+def hand_posture(world: World, fraction: float) -> NDArray[np.float64]:
+    """Hand targets at ``fraction`` of the way from each joint's lower to upper limit (0 for
+    abduction joints, whose range is symmetric)."""
+    lo, hi = world.hand_ctrlrange().T
+    q = lo + fraction * (hi - lo)
+    q[0::4] = 0.0
+    return q
+
+
+class Watch:
+    """The lowest fingertip height and the largest block shift seen so far."""
+
+    def __init__(self, world: World) -> None:
+        self.min_fingertip_z = np.inf
+        self.max_block_shift = 0.0
+        self.update(world)
+
+    def update(self, world: World) -> None:
+        self.min_fingertip_z = min(
+            self.min_fingertip_z, float(world.fingertip_positions()[:, 2].min())
+        )
+        shifts = [block_shift(world, b.name) for b in world.scene.blocks]
+        self.max_block_shift = max(self.max_block_shift, *shifts)
+
+
+def run_segment(
+    world: World,
+    rec: Recorder,
+    arm_to: NDArray[np.float64],
+    hand_to: NDArray[np.float64],
+    watch: Watch,
+) -> None:
+    """Ramp the servo targets to ``arm_to``/``hand_to`` over MOVE_S, hold HOLD_S, logging as we
+    go."""
+    dt = world.model.opt.timestep
+    arm_from, hand_from = world.arm_targets(), world.hand_targets()
+    n_move, n_hold = round(MOVE_S / dt), round(HOLD_S / dt)
+    for k in range(0, n_move + n_hold, LOG_EVERY):
+        s = min(1.0, (k + LOG_EVERY) / n_move)
+        world.set_arm_targets(arm_from + s * (arm_to - arm_from))
+        world.set_hand_targets(hand_from + s * (hand_to - hand_from))
+        world.step(LOG_EVERY)
+        log_state(world, rec)
+        watch.update(world)
+
+
+def block_shift(world: World, name: str) -> float:
+    """Distance (m) of block ``name``'s centroid from where the scene put it."""
+    b = world.scene.block(name)
+    start = np.array([*b.position, world.scene.table.height + 0.5 * b.height])
+    return float(np.linalg.norm(world.block_pose(name)[0] - start))
+
+
+def log_state(world: World, rec: Recorder) -> None:
+    """3D scene, arm joint angles and targets, fingertip heights and touch readings."""
+    rec.log_world(world)
+    for b in world.scene.blocks:
+        rec.log_scalar(f"blocks/{b.name}/shift_mm", 1000.0 * block_shift(world, b.name))
+    if world.with_robot:
+        for name, q, t in zip(ARM_JOINTS, world.arm_qpos(), world.arm_targets(), strict=True):
+            rec.log_scalar(f"arm/{name}/qpos", q)
+            rec.log_scalar(f"arm/{name}/target", t)
+        for name, f, tip in zip(FINGERS, world.touch(), world.fingertip_positions(), strict=True):
+            rec.log_scalar(f"touch/{name}", f)
+            rec.log_scalar(f"fingertip_z/{name}", tip[2])
+
+
+def run_demo(args: argparse.Namespace) -> DemoResult:
+    """Build, settle, photograph and record."""
+    scene = load_scene(args.scene, seed=args.seed, blocks=args.blocks)
+    world = World.build(scene)
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    rrd, png = out / "episode.rrd", out / "overhead.png"
+    dt = world.model.opt.timestep
+    with OverheadCamera(world, args.width, args.height) as cam, Recorder(rrd, world) as rec:
+        rec.log_event(f"scene {scene.name}: {len(scene.blocks)} blocks, target {scene.target}")
+        rec.log_camera("overhead", cam.intrinsics, cam.pose, (cam.width, cam.height))
+        watch = Watch(world)
+        for _ in range(round(SETTLE_S / dt) // LOG_EVERY):
+            world.step(LOG_EVERY)
+            log_state(world, rec)
+            watch.update(world)
+        rgb = cam.rgb()
+        if not cv2.imwrite(str(png), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+            raise HandSimError(f"cannot write {png}")
+        rec.log_image("overhead", rgb)
+        rec.log_depth("overhead", cam.depth())
+        home, open_hand = world.arm_targets(), world.hand_targets()
+        closed = hand_posture(world, HAND_CLOSE_FRACTION)
+        for i, (waypoint, close) in enumerate(ARM_WAYPOINTS):
+            target = home if waypoint is None else np.array(waypoint)
+            rec.log_event(
+                f"move {i + 1}/{len(ARM_WAYPOINTS)}: arm targets {np.round(target, 3).tolist()}"
+            )
+            run_segment(world, rec, target, closed if close else open_hand, watch)
+        rec.log_image("overhead", cam.rgb())
+        rec.log_event(f"done at t = {world.time:.2f} s")
+    return DemoResult(rrd, png, world.time, watch.max_block_shift, watch.min_fingertip_z)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        r = run_demo(args)
+    except HandSimError as e:
+        print(f"hand_sim.show: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(
+        f"wrote {r.rrd} and {r.png}: {r.sim_time:.2f} s simulated, blocks moved at most "
+        f"{1000 * r.max_block_shift:.2f} mm, lowest fingertip at z = {r.min_fingertip_z:.3f} m"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

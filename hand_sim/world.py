@@ -1,0 +1,332 @@
+"""The simulated world: the compiled scene of :mod:`hand_sim.assembly` stepped with MuJoCo
+(section 5, Figure 13).
+
+:meth:`World.build` turns a :class:`~hand_sim.scene.Scene` into one MuJoCo model; the accessors
+hide dm_control's name prefixes and index arithmetic so that controllers read and command the
+robot by joint order (:mod:`hand_sim.robot`), and :meth:`World.step` refuses to continue after
+NaN or a MuJoCo instability warning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+from numpy.typing import ArrayLike, NDArray
+
+from hand_sim import robot
+from hand_sim.assembly import (
+    CAMERA_NAME,
+    MODELS_DIR,
+    TABLE_HEIGHT_TOLERANCE,
+    TABLE_MODEL,
+    TABLE_XML,
+    TIMESTEP,
+    build_mjcf,
+    geom_top,
+)
+from hand_sim.blocks import JOINT_SUFFIX
+from hand_sim.errors import HandSimError, SimulationError
+from hand_sim.scene import Scene
+
+__all__ = ["CAMERA_NAME", "MODELS_DIR", "TIMESTEP", "World"]
+
+#: MuJoCo warnings that mean the simulation can no longer be trusted.
+FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_CONTACTFULL,
+    mujoco.mjtWarning.mjWARN_CNSTRFULL,
+)
+
+
+@dataclass(frozen=True)
+class _Indices:
+    """Addresses of the robot's joints, actuators, sites and sensors in the compiled model."""
+
+    arm_qpos: NDArray[np.int64]
+    arm_dof: NDArray[np.int64]
+    arm_ctrl: NDArray[np.int64]
+    hand_qpos: NDArray[np.int64]
+    hand_dof: NDArray[np.int64]
+    hand_ctrl: NDArray[np.int64]
+    tip_sites: NDArray[np.int64]
+    touch_adr: NDArray[np.int64]
+    block_bodies: dict[str, int]
+    block_qpos: dict[str, int]
+
+
+def _element_id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    i = mujoco.mj_name2id(model, kind, name)
+    if i < 0:
+        raise SimulationError(f"the world model has no {kind.name[6:].lower()} {name!r}")
+    return i
+
+
+class World:
+    """The compiled scene: MuJoCo model/data (``.model``, ``.data``) behind a dm_control
+    ``mjcf.Physics`` (``.physics``), with accessors that speak the robot's joint order.
+
+    Build with :meth:`build`; step with :meth:`step`, which refuses to continue after NaN or a
+    MuJoCo instability warning.
+    """
+
+    def __init__(
+        self, scene: Scene, mjcf_root: mjcf.RootElement, physics: mjcf.Physics, with_robot: bool
+    ) -> None:
+        self.scene = scene
+        self.mjcf_root = mjcf_root
+        self.physics = physics
+        self.model: mujoco.MjModel = physics.model.ptr
+        self.data: mujoco.MjData = physics.data.ptr
+        self.with_robot = with_robot
+        self._idx = self._resolve()
+        self._warnings = self._warning_counts()
+
+    # --- construction ----------------------------------------------------------------------
+    @classmethod
+    def build(
+        cls, scene: Scene, *, with_robot: bool = True, models_dir: Path = MODELS_DIR
+    ) -> World:
+        """Assemble the MJCF of ``scene``: table, arm (at :data:`ARM_BASE_POSITION`, ``home``
+        posture) carrying the hand, a free prism per block and the overhead camera.
+
+        ``with_robot=False`` leaves the arm and hand out (a lighter world for vision and tests).
+        """
+        root, home = build_mjcf(scene, with_robot=with_robot, models_dir=models_dir)
+        try:
+            physics = mjcf.Physics.from_mjcf_model(root)
+        except Exception as e:  # compile errors come from MuJoCo as ValueError
+            raise SimulationError(
+                f"the world model for scene {scene.name!r} does not compile: {e}"
+            ) from e
+        world = cls(scene, root, physics, with_robot)
+        world._check_table()
+        world._go_home(home)
+        return world
+
+    def _resolve(self) -> _Indices:
+        m = self.model
+        obj = mujoco.mjtObj
+
+        def ids(kind: mujoco.mjtObj, names: tuple[str, ...]) -> NDArray[np.int64]:
+            if not self.with_robot:
+                return np.zeros(0, dtype=np.int64)
+            return np.array(
+                [_element_id(m, kind, robot.qualified(n)) for n in names], dtype=np.int64
+            )
+
+        arm_j, hand_j = (
+            ids(obj.mjOBJ_JOINT, robot.ARM_JOINTS),
+            ids(obj.mjOBJ_JOINT, robot.HAND_JOINTS),
+        )
+        arm_a = ids(obj.mjOBJ_ACTUATOR, robot.ARM_ACTUATORS)
+        hand_a = ids(obj.mjOBJ_ACTUATOR, robot.HAND_ACTUATORS)
+        tips = ids(obj.mjOBJ_SITE, robot.FINGERTIP_SITES)
+        touch = m.sensor_adr[ids(obj.mjOBJ_SENSOR, robot.TOUCH_SENSORS)]
+        bodies = {b.name: _element_id(m, obj.mjOBJ_BODY, b.name) for b in self.scene.blocks}
+        qpos = {
+            b.name: int(m.jnt_qposadr[_element_id(m, obj.mjOBJ_JOINT, b.name + JOINT_SUFFIX)])
+            for b in self.scene.blocks
+        }
+        return _Indices(
+            arm_qpos=m.jnt_qposadr[arm_j],
+            arm_dof=m.jnt_dofadr[arm_j],
+            arm_ctrl=arm_a,
+            hand_qpos=m.jnt_qposadr[hand_j],
+            hand_dof=m.jnt_dofadr[hand_j],
+            hand_ctrl=hand_a,
+            tip_sites=tips,
+            touch_adr=np.asarray(touch, dtype=np.int64),
+            block_bodies=bodies,
+            block_qpos=qpos,
+        )
+
+    def _check_table(self) -> None:
+        """The table model's top must be where the scene says (blocks are placed on it)."""
+        m, d = self.model, self.data
+        mujoco.mj_forward(m, d)
+        prefix = TABLE_MODEL + "/"
+        top = -np.inf
+        for g in range(m.ngeom):
+            body_name = m.body(m.geom_bodyid[g]).name
+            colliding = m.geom_contype[g] or m.geom_conaffinity[g]
+            if body_name.startswith(prefix) and colliding:
+                top = max(top, geom_top(m, d, g))
+        if not np.isfinite(top) or abs(top - self.scene.table.height) > TABLE_HEIGHT_TOLERANCE:
+            raise SimulationError(
+                f"scene {self.scene.name!r} puts the table top at z = {self.scene.table.height} m "
+                f"but models/{TABLE_XML} has its top at z = {top:.4f} m"
+            )
+
+    def _go_home(self, home: dict[str, float]) -> None:
+        """Arm at the ``home`` keyframe, hand at its reference posture, every servo holding it."""
+        d = self.data
+        for name, value in home.items():
+            j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, robot.arm_name(name))
+            if j >= 0:
+                d.qpos[self.model.jnt_qposadr[j]] = value
+        if self.with_robot:
+            d.ctrl[self._idx.arm_ctrl] = d.qpos[self._idx.arm_qpos]
+            d.ctrl[self._idx.hand_ctrl] = d.qpos[self._idx.hand_qpos]
+        mujoco.mj_forward(self.model, d)
+        self._initial = (d.qpos.copy(), d.qvel.copy(), d.ctrl.copy())
+
+    # --- stepping --------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of :data:`TIMESTEP`; raise :class:`SimulationError` on NaN or on
+        a MuJoCo instability warning (MuJoCo would otherwise silently reset the state)."""
+        if n < 0:
+            raise HandSimError(f"step count must be >= 0, got {n}")
+        mujoco.mj_step(self.model, self.data, nstep=n)
+        self.check()
+
+    def check(self) -> None:
+        """Raise :class:`SimulationError` if the state holds NaN/inf or MuJoCo raised a warning."""
+        counts = self._warning_counts()
+        for w, before, now in zip(FATAL_WARNINGS, self._warnings, counts, strict=True):
+            if now > before:
+                self._warnings = counts
+                raise SimulationError(
+                    f"MuJoCo warning {w.name} at t = {self.data.time:.3f} s "
+                    f"(scene {self.scene.name!r}): "
+                    "the simulation is unstable and its state is not trustworthy"
+                )
+        d = self.data
+        for field in ("qpos", "qvel", "qacc"):
+            values = getattr(d, field)
+            if not np.all(np.isfinite(values)):
+                bad = int(np.flatnonzero(~np.isfinite(values))[0])
+                raise SimulationError(
+                    f"non-finite {field}[{bad}] at t = {d.time:.3f} s (scene {self.scene.name!r})"
+                )
+
+    def _warning_counts(self) -> tuple[int, ...]:
+        return tuple(int(self.data.warning[w].number) for w in FATAL_WARNINGS)
+
+    def reset(self) -> None:
+        """Back to the state right after :meth:`build` (time 0, blocks placed, arm at home)."""
+        mujoco.mj_resetData(self.model, self.data)
+        qpos, qvel, ctrl = self._initial
+        self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = qpos, qvel, ctrl
+        mujoco.mj_forward(self.model, self.data)
+        self._warnings = self._warning_counts()
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return float(self.data.time)
+
+    # --- blocks ----------------------------------------------------------------------------
+    def block_pose(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World position (3,) of block ``name``'s centroid (mid-height) and its quaternion (4,)
+        (w, x, y, z)."""
+        if name not in self._idx.block_bodies:
+            self.scene.block(name)  # raises SceneError listing the blocks
+        b = self._idx.block_bodies[name]
+        return self.data.xpos[b].copy(), self.data.xquat[b].copy()
+
+    def set_block_pose(
+        self, name: str, position: ArrayLike, quat: ArrayLike = (1.0, 0.0, 0.0, 0.0)
+    ) -> None:
+        """Teleport block ``name`` (centroid at ``position`` (3,), orientation ``quat``
+        (w, x, y, z)), at rest; recomputes the derived quantities (positions, contacts, sensors)."""
+        if name not in self._idx.block_qpos:
+            self.scene.block(name)
+        p, q = np.asarray(position, dtype=float), np.asarray(quat, dtype=float)
+        if (
+            p.shape != (3,)
+            or q.shape != (4,)
+            or not (np.all(np.isfinite(p)) and np.all(np.isfinite(q)))
+        ):
+            raise HandSimError(
+                "block pose needs a finite position (3,) and quaternion (4,), "
+                f"got {position!r}, {quat!r}"
+            )
+        norm = float(np.linalg.norm(q))
+        if norm == 0.0:
+            raise HandSimError("block quaternion must not be zero")
+        adr = self._idx.block_qpos[name]
+        self.data.qpos[adr : adr + 3] = p
+        self.data.qpos[adr + 3 : adr + 7] = q / norm
+        dof = self.model.jnt_dofadr[self.model.body_jntadr[self._idx.block_bodies[name]]]
+        self.data.qvel[dof : dof + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def block_body_id(self, name: str) -> int:
+        """MuJoCo body id of block ``name``."""
+        if name not in self._idx.block_bodies:
+            self.scene.block(name)
+        return self._idx.block_bodies[name]
+
+    # --- robot -----------------------------------------------------------------------------
+    def _require_robot(self) -> None:
+        if not self.with_robot:
+            raise HandSimError("this world was built with with_robot=False: it has no arm or hand")
+
+    def _targets(self, q: ArrayLike, n: int, what: str) -> NDArray[np.float64]:
+        self._require_robot()
+        a = np.asarray(q, dtype=float)
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise HandSimError(f"{what} targets must be {n} finite joint angles (rad), got {q!r}")
+        return a
+
+    def set_arm_targets(self, q5: ArrayLike) -> None:
+        """Position-servo targets (rad) of the arm's joints, in :data:`robot.ARM_JOINTS` order."""
+        self.data.ctrl[self._idx.arm_ctrl] = self._targets(q5, len(robot.ARM_JOINTS), "arm")
+
+    def set_hand_targets(self, q16: ArrayLike) -> None:
+        """Position-servo targets (rad) of the hand's joints, in :data:`robot.HAND_JOINTS` order."""
+        self.data.ctrl[self._idx.hand_ctrl] = self._targets(q16, len(robot.HAND_JOINTS), "hand")
+
+    def arm_targets(self) -> NDArray[np.float64]:
+        self._require_robot()
+        return self.data.ctrl[self._idx.arm_ctrl].copy()
+
+    def hand_targets(self) -> NDArray[np.float64]:
+        self._require_robot()
+        return self.data.ctrl[self._idx.hand_ctrl].copy()
+
+    def arm_qpos(self) -> NDArray[np.float64]:
+        """Arm joint angles (rad), :data:`robot.ARM_JOINTS` order."""
+        self._require_robot()
+        return self.data.qpos[self._idx.arm_qpos].copy()
+
+    def hand_qpos(self) -> NDArray[np.float64]:
+        """Hand joint angles (rad), :data:`robot.HAND_JOINTS` order."""
+        self._require_robot()
+        return self.data.qpos[self._idx.hand_qpos].copy()
+
+    def arm_qvel(self) -> NDArray[np.float64]:
+        """Arm joint velocities (rad/s), :data:`robot.ARM_JOINTS` order."""
+        self._require_robot()
+        return self.data.qvel[self._idx.arm_dof].copy()
+
+    def hand_qvel(self) -> NDArray[np.float64]:
+        """Hand joint velocities (rad/s), :data:`robot.HAND_JOINTS` order."""
+        self._require_robot()
+        return self.data.qvel[self._idx.hand_dof].copy()
+
+    def arm_ctrlrange(self) -> NDArray[np.float64]:
+        """(5, 2) control range of the arm's servos (rad)."""
+        self._require_robot()
+        return self.model.actuator_ctrlrange[self._idx.arm_ctrl].copy()
+
+    def hand_ctrlrange(self) -> NDArray[np.float64]:
+        """(16, 2) control range of the hand's servos (rad)."""
+        self._require_robot()
+        return self.model.actuator_ctrlrange[self._idx.hand_ctrl].copy()
+
+    def fingertip_positions(self) -> NDArray[np.float64]:
+        """(4, 3) world positions of the fingertip sites, order ff, mf, rf, th."""
+        self._require_robot()
+        return self.data.site_xpos[self._idx.tip_sites].copy()
+
+    def touch(self) -> NDArray[np.float64]:
+        """(4,) fingertip touch sensor readings (N), order ff, mf, rf, th."""
+        self._require_robot()
+        return self.data.sensordata[self._idx.touch_adr].copy()

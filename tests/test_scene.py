@@ -1,0 +1,265 @@
+"""Tests of hand_sim.scene, hand_sim.geometry and hand_sim.random_scene: scene files load, the
+layouts are physically sensible, and bad files are refused with a message naming file and field."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controllers.grasp import PAPER_OBJECTS, paper_object
+from hand_sim.geometry import convex_polygon_distance, place_polygon
+from hand_sim.random_scene import load_generator_config
+from hand_sim.scene import MIN_BLOCK_GAP, SceneError, load_scene, scene_names
+
+NAMED = [n for n in scene_names() if n != "random"]
+
+
+def boundary_samples(footprint: np.ndarray, per_edge: int = 400) -> np.ndarray:
+    """Dense points on a polygon's outline (independent of the SAT-based distance)."""
+    t = np.linspace(0.0, 1.0, per_edge, endpoint=False)[:, None]
+    nxt = np.roll(footprint, -1, axis=0)
+    return np.concatenate([a + t * (b - a) for a, b in zip(footprint, nxt, strict=True)])
+
+
+def sampled_gap(a: np.ndarray, b: np.ndarray, per_edge: int = 400) -> float:
+    """Smallest distance between the sampled outlines (never below the true gap)."""
+    pa, pb = boundary_samples(a, per_edge), boundary_samples(b, per_edge)
+    return float(np.sqrt(((pa[:, None, :] - pb[None, :, :]) ** 2).sum(-1)).min())
+
+
+def test_scene_names_cover_the_issue() -> None:
+    names = set(scene_names())
+    assert {"clutter3", "clutter5", "random"} <= names
+    assert {f"single_{o}" for o in PAPER_OBJECTS} <= names
+
+
+@pytest.mark.parametrize("name", NAMED)
+def test_named_scene_is_physically_sensible(name: str) -> None:
+    scene = load_scene(name)
+    assert scene.target in scene.block_names
+    t = scene.table
+    lo = np.array(t.position_xy) - 0.5 * np.array(t.size_xy)
+    hi = np.array(t.position_xy) + 0.5 * np.array(t.size_xy)
+    fps = [b.footprint() for b in scene.blocks]
+    for fp in fps:
+        assert np.all(fp >= lo) and np.all(fp <= hi)
+    for i in range(len(fps)):
+        for j in range(i):
+            assert sampled_gap(fps[i], fps[j], 100) >= MIN_BLOCK_GAP - 1e-4
+    assert np.all(np.array(scene.place) >= lo) and np.all(np.array(scene.place) <= hi)
+    for b in scene.blocks:
+        assert b.height == pytest.approx(0.20)
+        assert 0.03 <= b.polygon.diameter <= 0.07  # "about 5 cm across"
+
+
+def test_clutter_scenes_hold_different_blocks_close_together() -> None:
+    for name, k in (("clutter3", 3), ("clutter5", 5)):
+        scene = load_scene(name)
+        assert len(scene.blocks) == k
+        assert (
+            len({b.polygon.n_edges * 1000 + round(b.polygon.area * 1e6) for b in scene.blocks}) == k
+        )
+        centres = np.array([b.position for b in scene.blocks])
+        nearest = [np.sort(np.linalg.norm(centres - c, axis=1))[1] for c in centres]
+        assert max(nearest) < 0.15  # every block has a neighbour within 15 cm
+
+
+@pytest.mark.parametrize("obj", PAPER_OBJECTS)
+def test_single_scene_holds_that_paper_object(obj: str) -> None:
+    scene = load_scene(f"single_{obj}")
+    (block,) = scene.blocks
+    np.testing.assert_allclose(block.polygon.vertices, paper_object(obj).vertices)
+    assert scene.target == block.name
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    return p
+
+
+GOOD = """
+target = "a"
+place = [0.0, -0.2]
+[[blocks]]
+name = "a"
+shape = "square"
+position = [0.0, 0.0]
+yaw_deg = 30.0
+[[blocks]]
+name = "b"
+vertices = [[0.0, 0.0], [0.04, 0.0], [0.0, 0.03]]
+position = [0.12, 0.0]
+rgba = [0.1, 0.2, 0.3, 1.0]
+"""
+
+
+def test_file_path_loads_with_degrees_and_explicit_vertices(tmp_path: Path) -> None:
+    scene = load_scene(write(tmp_path, GOOD))
+    a, b = scene.blocks
+    assert a.yaw == pytest.approx(math.radians(30.0))
+    assert b.polygon.area == pytest.approx(0.5 * 0.04 * 0.03)
+    np.testing.assert_allclose(
+        b.polygon.vertices.mean(axis=0), [0.04 / 3 - 0.04 / 3, 0.0], atol=1e-12
+    )
+    assert b.rgba == (0.1, 0.2, 0.3, 1.0)
+    # the square's footprint is rotated by 30 degrees about its centroid
+    fp = a.footprint()
+    np.testing.assert_allclose(fp.mean(axis=0), [0.0, 0.0], atol=1e-12)
+    expected = paper_object("square").vertices @ np.array(
+        [[math.cos(0.5236), math.sin(0.5236)], [-math.sin(0.5236), math.cos(0.5236)]]
+    )
+    np.testing.assert_allclose(fp, expected, atol=1e-4)
+
+
+BAD_CASES = {
+    "unknown_shape": (
+        GOOD.replace('"square"', '"circle"'),
+        ["blocks[0].shape", "circle", "valid", "pentagon"],
+    ),
+    "overlap": (
+        GOOD.replace("[0.12, 0.0]", "[0.03, 0.0]"),
+        ["blocks[1].position", "overlaps", "'a'"],
+    ),
+    "too_close": (  # axis-aligned 4 cm square and a triangle whose left edge is 3 mm away
+        GOOD.replace("[0.12, 0.0]", "[0.03633, 0.0]").replace("yaw_deg = 30.0", "yaw_deg = 0.0"),
+        ["blocks[1].position", "3.0 mm from"],
+    ),
+    "off_table": (
+        GOOD.replace("[0.12, 0.0]", "[0.12, 0.449]"),
+        ["blocks[1].position", "off the table"],
+    ),
+    "unknown_top_key": ("colour = 'red'\n" + GOOD, ["bad.toml", ": colour:", "unknown key"]),
+    "unknown_block_key": (
+        GOOD.replace("yaw_deg = 30.0", "yaw = 30.0"),
+        ["blocks[0].yaw", "unknown key", "yaw_deg"],
+    ),
+    "target_not_block": (
+        GOOD.replace('target = "a"', 'target = "z"'),
+        ["target", "'z'", "not a block", "a, b"],
+    ),
+    "place_off_table": (
+        GOOD.replace("place = [0.0, -0.2]", "place = [2.0, 0.0]"),
+        ["place", "off the table"],
+    ),
+    "place_inside_other": (
+        GOOD.replace("place = [0.0, -0.2]", "place = [0.125, 0.005]"),
+        ["place", "inside block 'b'"],
+    ),
+    "non_convex": (
+        GOOD.replace(
+            "[[0.0, 0.0], [0.04, 0.0], [0.0, 0.03]]", "[[0, 0], [0.04, 0], [0.01, 0.01], [0, 0.04]]"
+        ),
+        ["blocks[1].vertices", "not convex"],
+    ),
+    "vertices_in_cm": (
+        GOOD.replace("[[0.0, 0.0], [0.04, 0.0], [0.0, 0.03]]", "[[0, 0], [4, 0], [0, 3]]"),
+        ["blocks[1].vertices", "metres"],
+    ),
+    "missing_position": (
+        GOOD.replace("position = [0.0, 0.0]\n", ""),
+        ["blocks[0].position", "missing"],
+    ),
+    "bad_position": (
+        GOOD.replace("position = [0.0, 0.0]", 'position = [0.0, "x"]'),
+        ["blocks[0].position", "2 finite numbers"],
+    ),
+    "duplicate_name": (GOOD.replace('name = "b"', 'name = "a"'), ["blocks[1].name", "duplicate"]),
+    "colour_and_rgba": (
+        GOOD.replace("rgba =", "colour = 'red'\nrgba ="),
+        ["blocks[1].colour", "at most one"],
+    ),
+    "unknown_colour": (
+        GOOD.replace("yaw_deg = 30.0", 'yaw_deg = 30.0\ncolour = "mauve"'),
+        ["blocks[0].colour", "mauve", "red"],
+    ),
+    "shape_and_vertices": (
+        GOOD.replace('shape = "square"', 'shape = "square"\nvertices = [[0,0],[0.03,0],[0,0.03]]'),
+        ["blocks[0].shape", "exactly one"],
+    ),
+    "no_blocks": ('target = "a"\nplace = [0.0, 0.0]\n', ["blocks", "at least one"]),
+    "syntax": (GOOD + "[[blocks]\n", ["bad.toml", "not valid TOML"]),
+    "table_key": (GOOD + "[table]\nwidth = 1.0\n", ["table.width", "unknown key", "size"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CASES))
+def test_bad_scene_file_is_refused_naming_file_field_and_problem(tmp_path: Path, case: str) -> None:
+    text, fragments = BAD_CASES[case]
+    path = write(tmp_path, text)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert str(path) in message
+    for fragment in fragments:
+        assert fragment in message, (fragment, message)
+
+
+def test_unknown_scene_name_lists_valid_names() -> None:
+    with pytest.raises(SceneError, match=r"unknown scene 'clutter9'.*clutter3.*single_triangle"):
+        load_scene("clutter9")
+    with pytest.raises(ValueError):  # SceneError is a ValueError
+        load_scene("nope")
+
+
+def test_seed_only_for_random() -> None:
+    with pytest.raises(SceneError, match="random"):
+        load_scene("clutter3", seed=1)
+
+
+def test_convex_polygon_distance_matches_sampling() -> None:
+    rng = np.random.default_rng(0)
+    square = paper_object("square").vertices
+    tri = paper_object("triangle").vertices
+    for _ in range(20):
+        a = place_polygon(square, rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi))
+        b = place_polygon(tri, rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi))
+        d = convex_polygon_distance(a, b)
+        if d > 0:
+            assert d == pytest.approx(sampled_gap(a, b), abs=2e-4)
+        else:  # overlapping: some vertex of one lies inside the other, or edges cross
+            assert sampled_gap(a, b) < 2e-4 or d == 0.0
+    unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    assert convex_polygon_distance(unit, unit + np.array([3.0, 0.0])) == pytest.approx(2.0)
+    diagonal = convex_polygon_distance(unit, unit + np.array([2.0, 2.0]))
+    assert diagonal == pytest.approx(math.sqrt(2.0))
+    assert convex_polygon_distance(unit, unit + np.array([0.5, 0.5])) == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_random_scene_is_seeded_collision_free_and_in_reach(seed: int) -> None:
+    cfg = load_generator_config()
+    scene = load_scene("random", seed=seed, blocks=5)
+    again = load_scene("random", seed=seed, blocks=5)
+    assert [b.position for b in scene.blocks] == [b.position for b in again.blocks]
+    assert scene.place == again.place
+    assert len(scene.blocks) == 5
+    fps = [b.footprint() for b in scene.blocks]
+    for i in range(5):
+        for j in range(i):
+            assert sampled_gap(fps[i], fps[j], 100) >= cfg.min_gap - 1e-4
+    for b in scene.blocks:
+        r = math.dist(b.position, cfg.reach_centre)
+        assert cfg.reach[0] <= r <= cfg.reach[1]
+        assert cfg.region_x[0] <= b.position[0] <= cfg.region_x[1]
+    target = scene.target_block
+    at_place = place_polygon(target.polygon.vertices, scene.place, target.yaw)
+    for b, fp in zip(scene.blocks, fps, strict=True):
+        if b.name != target.name:
+            assert sampled_gap(at_place, fp, 100) >= cfg.min_gap - 1e-4
+
+
+def test_random_scenes_differ_between_seeds() -> None:
+    a = load_scene("random", seed=10, blocks=3)
+    b = load_scene("random", seed=11, blocks=3)
+    assert [x.position for x in a.blocks] != [x.position for x in b.blocks]
+
+
+def test_random_scene_refuses_impossible_requests() -> None:
+    with pytest.raises(SceneError, match="blocks must be"):
+        load_scene("random", seed=0, blocks=0)
+    with pytest.raises(SceneError, match="blocks must be"):
+        load_scene("random", seed=0, blocks=100)
