@@ -1,0 +1,342 @@
+"""Posture control (section 5.2, after Grupen & Souccar's posture controller, ref. [16] of the
+paper): keep the fingertips where they are while reconfiguring the arm and hand to maximise the
+hand's manipulability, with mink's differential IK (one position-only FrameTask per fingertip,
+joint limits as ConfigurationLimit).
+
+Manipulability measure. Each finger's fingertip position Jacobian ``J_f`` (3 x 4, with respect
+to that finger's own joints) has Yoshikawa manipulability ``w_f = sqrt(det(J_f J_f^T))``; the
+hand's measure is ``M = sum_f log(w_f)`` (log of the product; ``-inf`` at a singular finger).
+``w_f`` does not depend on the arm, but with the fingertips held the arm must move for the
+fingers to change posture: this is how the arm is "reconfigured to maximise the hand
+manipulability while maintaining the current fingertip positions".
+
+:class:`ManipulabilityTask` is a gradient-type mink task: its error is a constant desired
+decrease of ``-2 M`` per step and its Jacobian the gradient of ``-2 M`` (finite differences over
+the finger joints), so the QP trades it against the fingertip tasks; it needs ``solve_ik(...,
+damping=...)`` (STACK.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mink
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.errors import PostureError
+from hand_sim import robot
+from hand_sim.world import World
+
+#: Fingertip position tolerance (m) for a target to count as reached / held.
+TIP_TOLERANCE = 1e-3
+#: Differential-IK integration step (s), QP solver and Levenberg-Marquardt damping.
+IK_DT = 0.05
+QP_SOLVER = "daqp"
+IK_DAMPING = 1e-3
+#: Fingertip FrameTask cost and LM damping (STACK.md pattern).
+TIP_COST = 1.0
+TIP_LM_DAMPING = 1e-3
+#: Manipulability task cost and desired decrease of -2M per IK step.
+MANIPULABILITY_COST = 0.05
+MANIPULABILITY_STEP = 0.5
+#: Finite-difference step (rad) of the manipulability gradient.
+FD_STEP = 1e-6
+#: Iterations: reaching the fingertip targets, then optimising the posture.
+REACH_ITERATIONS = 300
+POSTURE_ITERATIONS = 150
+#: Stop optimising when M improved by less than this over POSTURE_WINDOW iterations.
+POSTURE_MIN_GAIN = 1e-3
+POSTURE_WINDOW = 20
+#: Which joints posture control may move.
+JOINT_SETS: tuple[str, ...] = ("arm+hand", "hand")
+
+
+@dataclass(frozen=True)
+class HandIndices:
+    """Addresses in a world model of the fingertip sites and each finger's joints."""
+
+    tip_sites: NDArray[np.int64]  #: (4,) site ids, order ff, mf, rf, th
+    finger_dofs: NDArray[np.int64]  #: (4, 4) dof addresses, one row per finger
+    finger_qpos: NDArray[np.int64]  #: (4, 4) qpos addresses
+    arm_dofs: NDArray[np.int64]  #: (5,)
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> HandIndices:
+        """Resolve the robot's names in ``model`` (a world model with the arm and hand)."""
+
+        def joint(name: str) -> int:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, robot.qualified(name))
+            if j < 0:
+                raise PostureError(f"the model has no joint {robot.qualified(name)!r}")
+            return j
+
+        tips = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.qualified(s))
+            for s in robot.FINGERTIP_SITES
+        ]
+        if min(tips) < 0:
+            raise PostureError(f"the model lacks a fingertip site of {robot.FINGERTIP_SITES}")
+        hand = np.array([joint(n) for n in robot.HAND_JOINTS]).reshape(len(robot.FINGERS), -1)
+        arm = np.array([joint(n) for n in robot.ARM_JOINTS])
+        return cls(
+            np.array(tips),
+            model.jnt_dofadr[hand],
+            model.jnt_qposadr[hand],
+            model.jnt_dofadr[arm],
+        )
+
+
+def finger_manipulability(
+    model: mujoco.MjModel, data: mujoco.MjData, idx: HandIndices
+) -> NDArray[np.float64]:
+    """``w_f = sqrt(det(J_f J_f^T))`` (m^3 rad^-3) of each finger; ``data`` must hold current
+    kinematics and ``mj_comPos``."""
+    jacp = np.zeros((3, model.nv))
+    out = np.empty(len(idx.tip_sites))
+    for f, site in enumerate(idx.tip_sites):
+        mujoco.mj_jacSite(model, data, jacp, None, int(site))
+        J = jacp[:, idx.finger_dofs[f]]
+        out[f] = np.sqrt(max(np.linalg.det(J @ J.T), 0.0))
+    return out
+
+
+def log_manipulability(model: mujoco.MjModel, data: mujoco.MjData, idx: HandIndices) -> float:
+    """The hand's measure ``M = sum_f log(w_f)``."""
+    with np.errstate(divide="ignore"):
+        return float(np.log(finger_manipulability(model, data, idx)).sum())
+
+
+class ManipulabilityTask(mink.Task):
+    """A mink task whose error is a desired decrease ``step`` of ``-2 M`` and whose Jacobian is
+    the gradient of ``-2 M = -sum_f log det(J_f J_f^T)`` over the finger joints."""
+
+    k: int = 1
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        *,
+        cost: float = MANIPULABILITY_COST,
+        step: float = MANIPULABILITY_STEP,
+        gain: float = 1.0,
+    ) -> None:
+        if cost < 0 or step <= 0:
+            raise PostureError(f"need cost >= 0 and step > 0, got cost {cost} step {step}")
+        super().__init__(cost=np.array([cost]), gain=gain, lm_damping=0.0)
+        self.model = model
+        self.idx = HandIndices.of(model)
+        self.step = float(step)
+        self._data = mujoco.MjData(model)
+
+    def objective(self, qpos: NDArray[np.float64]) -> float:
+        """``-2 M`` at ``qpos``."""
+        d = self._data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, d)
+        mujoco.mj_comPos(self.model, d)
+        return -2.0 * log_manipulability(self.model, d, self.idx)
+
+    def compute_error(self, configuration: mink.Configuration) -> NDArray[np.float64]:
+        """The desired decrease of ``-2 M`` this step."""
+        return np.array([self.step])
+
+    def compute_jacobian(self, configuration: mink.Configuration) -> NDArray[np.float64]:
+        """Gradient (1, nv) of ``-2 M`` by central differences over the finger joints."""
+        q = configuration.q.copy()
+        grad = np.zeros((1, self.model.nv))
+        for qa, da in zip(self.idx.finger_qpos.ravel(), self.idx.finger_dofs.ravel(), strict=True):
+            q[qa] += FD_STEP
+            hi = self.objective(q)
+            q[qa] -= 2 * FD_STEP
+            lo = self.objective(q)
+            q[qa] += FD_STEP
+            grad[0, da] = (hi - lo) / (2 * FD_STEP)
+        if not np.all(np.isfinite(grad)):
+            grad[:] = 0.0  # at a singular finger; the fingertip tasks still act
+        return grad
+
+
+@dataclass(frozen=True, eq=False)
+class PostureResult:
+    """Result of :func:`solve_posture`. ``reachable`` is False when some fingertip target could
+    not be brought within ``TIP_TOLERANCE``; ``unreachable`` names those fingers."""
+
+    reachable: bool
+    arm_q: NDArray[np.float64]  #: (5,) arm joints
+    hand_q: NDArray[np.float64]  #: (16,) hand joints
+    tip_error: NDArray[np.float64]  #: (4,) fingertip distance to target (m)
+    log_manipulability_start: float
+    log_manipulability_end: float
+    iterations: int
+    unreachable: tuple[str, ...]
+
+
+def _frozen_dofs(model: mujoco.MjModel, idx: HandIndices, joints: str) -> list[int]:
+    movable = set(idx.finger_dofs.ravel().tolist())
+    if joints == "arm+hand":
+        movable |= set(idx.arm_dofs.tolist())
+    return [d for d in range(model.nv) if d not in movable]
+
+
+def solve_posture(
+    world: World,
+    targets: ArrayLike | None = None,
+    *,
+    optimize: bool = True,
+    joints: str = "arm+hand",
+    tolerance: float = TIP_TOLERANCE,
+    reach_iterations: int = REACH_ITERATIONS,
+    posture_iterations: int = POSTURE_ITERATIONS,
+) -> PostureResult:
+    """Kinematic posture control from the world's current state (the world is not changed).
+
+    First the fingertips are brought to ``targets`` (4, 3) (default: where they are now); if a
+    target stays farther than ``tolerance`` the result is ``reachable=False``. Then, if
+    ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold the tips;
+    a step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
+    ``"arm+hand"`` (posture control) or ``"hand"`` (fingers only); other joints are frozen.
+    """
+    if joints not in JOINT_SETS:
+        raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
+    model = world.model
+    idx = HandIndices.of(model)
+    cfg = mink.Configuration(model)
+    cfg.update(world.data.qpos.copy())
+    goal = (
+        cfg.data.site_xpos[idx.tip_sites].copy()
+        if targets is None
+        else np.asarray(targets, dtype=float)
+    )
+    if goal.shape != (len(robot.FINGERS), 3) or not np.all(np.isfinite(goal)):
+        raise PostureError(f"fingertip targets must be a finite (4, 3) array, got {goal.shape}")
+    tips = []
+    for site, p in zip(robot.FINGERTIP_SITES, goal, strict=True):
+        task = mink.FrameTask(
+            robot.qualified(site),
+            "site",
+            position_cost=TIP_COST,
+            orientation_cost=0.0,
+            lm_damping=TIP_LM_DAMPING,
+        )
+        task.set_target(mink.SE3.from_translation(p))
+        tips.append(task)
+    limits = [mink.ConfigurationLimit(model)]
+    frozen = _frozen_dofs(model, idx, joints)
+    constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
+
+    def tip_error() -> NDArray[np.float64]:
+        return np.linalg.norm(cfg.data.site_xpos[idx.tip_sites] - goal, axis=1)
+
+    m_start = log_manipulability(model, cfg.data, idx)
+    iterations = 0
+    for _ in range(reach_iterations):
+        if tip_error().max() < 0.5 * tolerance:
+            break
+        v = mink.solve_ik(
+            cfg, tips, IK_DT, QP_SOLVER, damping=IK_DAMPING, limits=limits, constraints=constraints
+        )
+        cfg.integrate_inplace(v, IK_DT)
+        iterations += 1
+    err = tip_error()
+    if err.max() < tolerance and optimize:
+        manip = ManipulabilityTask(model)
+        history = [log_manipulability(model, cfg.data, idx)]
+        for _ in range(posture_iterations):
+            q_before = cfg.q.copy()
+            v = mink.solve_ik(
+                cfg,
+                [*tips, manip],
+                IK_DT,
+                QP_SOLVER,
+                damping=IK_DAMPING,
+                limits=limits,
+                constraints=constraints,
+            )
+            cfg.integrate_inplace(v, IK_DT)
+            # let the fingertip tasks alone pull the tips back onto their targets
+            for _ in range(3):
+                v = mink.solve_ik(
+                    cfg,
+                    tips,
+                    IK_DT,
+                    QP_SOLVER,
+                    damping=IK_DAMPING,
+                    limits=limits,
+                    constraints=constraints,
+                )
+                cfg.integrate_inplace(v, IK_DT)
+            iterations += 1
+            value = log_manipulability(model, cfg.data, idx)
+            if tip_error().max() > 0.5 * tolerance or not value > history[-1]:
+                cfg.update(q_before)
+                break
+            history.append(value)
+            if (
+                len(history) > POSTURE_WINDOW
+                and history[-1] - history[-1 - POSTURE_WINDOW] < POSTURE_MIN_GAIN
+            ):
+                break
+        err = tip_error()
+    arm_q = cfg.q[model.jnt_qposadr[[model.joint(robot.qualified(j)).id for j in robot.ARM_JOINTS]]]
+    hand_q = cfg.q[idx.finger_qpos.ravel()]
+    unreachable = tuple(f for f, e in zip(robot.FINGERS, err, strict=True) if e >= tolerance)
+    return PostureResult(
+        reachable=not unreachable,
+        arm_q=arm_q.copy(),
+        hand_q=hand_q.copy(),
+        tip_error=err,
+        log_manipulability_start=m_start,
+        log_manipulability_end=log_manipulability(model, cfg.data, idx),
+        iterations=iterations,
+        unreachable=unreachable,
+    )
+
+
+def world_log_manipulability(world: World) -> float:
+    """``M`` of the hand in the world's current state."""
+    model = world.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = world.data.qpos
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    return log_manipulability(model, data, HandIndices.of(model))
+
+
+#: Time (s) over which servo targets move to a new posture, and the settling time after it.
+MOVE_TIME = 1.0
+SETTLE_TIME = 0.5
+#: Steady-state servo error corrections after a move (see :func:`apply_posture`).
+SERVO_CORRECTIONS = 2
+
+
+def apply_posture(
+    world: World,
+    result: PostureResult,
+    *,
+    move_time: float = MOVE_TIME,
+    settle: float = SETTLE_TIME,
+    corrections: int = SERVO_CORRECTIONS,
+) -> NDArray[np.float64]:
+    """Move the arm and hand servos linearly to ``result``'s posture over ``move_time`` s, let
+    them settle, and return the fingertip positions (4, 3) the simulation then has.
+
+    Position servos sag under gravity (the fingers' servos are soft); ``corrections`` times the
+    remaining steady-state joint error is added to the servo targets and the servos settle again.
+    """
+    arm0, hand0 = world.arm_targets(), world.hand_targets()
+    dt = world.model.opt.timestep
+    n = max(1, round(move_time / dt))
+    chunk = 10
+    for k in range(0, n, chunk):
+        s = min(1.0, (k + chunk) / n)
+        world.set_arm_targets(arm0 + s * (result.arm_q - arm0))
+        world.set_hand_targets(hand0 + s * (result.hand_q - hand0))
+        world.step(chunk)
+    world.step(max(0, round(settle / dt)))
+    for _ in range(corrections):
+        world.set_arm_targets(world.arm_targets() + result.arm_q - world.arm_qpos())
+        world.set_hand_targets(world.hand_targets() + result.hand_q - world.hand_qpos())
+        world.step(max(0, round(settle / dt)))
+    return world.fingertip_positions()

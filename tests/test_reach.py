@@ -1,0 +1,210 @@
+"""Tests of coarse reach (controllers.reach) on the simulated arm in clutter3."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import mujoco
+import numpy as np
+import pytest
+
+from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
+from controllers.fine_reach import fine_reach
+from controllers.reach import (
+    PRESHAPE,
+    ReachTarget,
+    execute_path,
+    plan_arm_path,
+    plan_coarse_reach,
+    plan_delivery,
+)
+from hand_sim import robot
+from hand_sim.scene import load_scene
+from hand_sim.world import World
+
+#: Joint step (rad) of the independent check: finer than the verification step of the planner.
+CHECK_STEP = 0.005
+
+
+@pytest.fixture(scope="module", params=[("top", "lateral"), ("top",)], ids=["auto", "top-only"])
+def clutter3(request):
+    """clutter3 and its coarse-reach plan: best of both approaches, and the top approach alone."""
+    world = World.build(load_scene("clutter3"))
+    target = ReachTarget.from_world(world, world.scene.target)
+    plan = plan_coarse_reach(world, target, approaches=request.param)
+    return world, target, plan
+
+
+def densify(path: np.ndarray, step: float) -> np.ndarray:
+    rows = [path[:1]]
+    for a, b in itertools.pairwise(path):
+        n = max(1, int(np.ceil(np.abs(b - a).max() / step)))
+        rows.append(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
+    return np.vstack(rows)
+
+
+def forbidden_contacts(world: World, arm_q: np.ndarray, hand_q, allowed_body: int) -> list:
+    """Robot contacts at a posture, computed from scratch on the world's own model (not the
+    planner's copy): robot geom against a non-robot geom other than ``allowed_body``."""
+    m = world.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = world.data.qpos
+    adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    hadr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.HAND_JOINTS]
+    d.qpos[hadr] = hand_q
+    d.qpos[adr] = arm_q
+    mujoco.mj_forward(m, d)
+    bad = []
+    for c in d.contact[: d.ncon]:
+        bodies = [int(m.geom_bodyid[g]) for g in (c.geom1, c.geom2)]
+        on_robot = [m.body(b).name.startswith(robot.ARM_PREFIX) for b in bodies]
+        if on_robot[0] != on_robot[1] and allowed_body not in bodies and c.dist < 0:
+            bad.append((m.geom(c.geom1).name, m.geom(c.geom2).name))
+    return bad
+
+
+def test_clutter3_plan_exists_and_ends_above_the_target(clutter3):
+    world, target, plan = clutter3
+    assert plan.found, plan.reason
+    assert plan.approach in plan.candidates
+    assert len(plan.candidates) + len(plan.no_goal) in (1, 2)
+    found = {a: p.length for a, p in plan.candidates.items() if p.found}
+    assert plan.approach == min(found, key=found.get)  # the shorter existing path wins
+    path = plan.path.path
+    np.testing.assert_allclose(path[0], world.arm_qpos())
+    np.testing.assert_allclose(path[-1], plan.goal.q)
+    checker = CollisionChecker(world, hand_q=plan.hand_q)
+    pos, rot = checker.palm_pose(path[-1])
+    if plan.approach == "top":
+        assert np.linalg.norm(pos[:2] - np.asarray(target.position_xy)) < 0.005
+        assert pos[2] > target.top_z + 0.1
+        assert rot[:, 2] @ np.array([0.0, 0.0, -1.0]) > 0.99  # approach axis points down
+    else:  # lateral: approach axis horizontal, pointing at the block, palm beside its faces
+        to_block = np.array([*target.position_xy, pos[2]]) - pos
+        assert abs(rot[2, 2]) < 0.01
+        assert rot[:, 2] @ to_block / np.linalg.norm(to_block) > 0.99
+        assert target.top_z - 0.2 < pos[2] < target.top_z
+    assert plan.path.length >= plan.path.straight_distance - 1e-9
+
+
+def test_clutter3_path_has_no_contact_except_the_target_checked_finely(clutter3):
+    world, _, plan = clutter3
+    target_body = world.block_body_id(world.scene.target)
+    dense = densify(plan.path.path, CHECK_STEP)
+    assert len(dense) > 3 * len(plan.path.path)
+    for q in dense:
+        assert forbidden_contacts(world, q, plan.hand_q, target_body) == [], q
+
+
+def test_clutter3_path_executes_without_contact(clutter3):
+    world, _, plan = clutter3
+    world.reset()
+    run = execute_path(world, plan.path.path, hand_q=plan.hand_q)
+    assert run.final_error < 0.01
+    assert run.contacts == ()
+    # nothing was knocked over: every block is still where the scene put it
+    for block in world.scene.blocks:
+        pos, _ = world.block_pose(block.name)
+        assert np.linalg.norm(pos[:2] - np.asarray(block.position)) < 1e-3
+
+
+def test_blocked_goal_and_bad_input_are_reported(clutter3):
+    world, target, plan = clutter3
+    world.reset()
+    checker = CollisionChecker(world, hand_q=PRESHAPE)
+    start = world.arm_qpos()
+    into_table = plan.goal.q.copy()
+    into_table[1] += 0.6  # shoulder forward: the hand dives into the table and blocks
+    assert checker.collides(into_table)
+    res = plan_arm_path(checker, start, into_table)
+    assert not res.found
+    assert "goal posture is in collision" in res.reason
+    with pytest.raises(ReachError, match="approach"):
+        plan_coarse_reach(world, target, approaches=("sideways",))
+    with pytest.raises(ReachError, match="resolution"):
+        plan_arm_path(checker, start, plan.goal.q, resolution=2)
+
+
+def test_far_target_plans_both_approaches_and_picks_the_shorter():
+    scene = load_scene("single_square")
+    block = dataclasses.replace(scene.blocks[0], position=(0.3, 0.1))
+    world = World.build(dataclasses.replace(scene, blocks=(block,)))
+    target = ReachTarget.from_world(world, "square")
+    plan = plan_coarse_reach(world, target)
+    assert plan.found
+    assert set(plan.candidates) == {"top", "lateral"}
+    assert all(p.found for p in plan.candidates.values())
+    lengths = {a: p.length for a, p in plan.candidates.items()}
+    assert plan.approach == min(lengths, key=lengths.get)
+    assert plan.approach == "lateral"
+    # the lateral goal puts the approach axis horizontal, pointing at the block
+    checker = CollisionChecker(world, hand_q=plan.hand_q)
+    pos, rot = checker.palm_pose(plan.path.path[-1])
+    to_block = np.array([*target.position_xy, pos[2]]) - pos
+    assert abs(rot[2, 2]) < 0.01
+    assert rot[:, 2] @ to_block / np.linalg.norm(to_block) > 0.99
+    run = execute_path(world, plan.path.path, hand_q=plan.hand_q)
+    assert run.contacts == ()
+
+
+def carried_contacts(world: World, block: str, path: np.ndarray, lift_gap: float) -> list:
+    """Independent check of a delivery path: the block follows the palm rigidly (transform
+    taken from the world now); returns forbidden contacts (block or robot against anything but
+    the hand-block pair; block-table allowed while the block is within ``lift_gap`` of its
+    starting height)."""
+    m = world.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = world.data.qpos
+    mujoco.mj_kinematics(m, d)
+    site = m.site(robot.hand_name("palm_center")).id
+    body = world.block_body_id(block)
+    adr = m.jnt_qposadr[m.body_jntadr[body]]
+    Rp = d.site_xmat[site].reshape(3, 3)
+    p_rel = Rp.T @ (d.xpos[body] - d.site_xpos[site])
+    R_rel = Rp.T @ d.xmat[body].reshape(3, 3)
+    z0 = d.xpos[body][2]
+    arm = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    bad = []
+    for q in densify(path, CHECK_STEP):
+        d.qpos[arm] = q
+        mujoco.mj_kinematics(m, d)
+        Rp = d.site_xmat[site].reshape(3, 3)
+        d.qpos[adr : adr + 3] = d.site_xpos[site] + Rp @ p_rel
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (Rp @ R_rel).ravel())
+        d.qpos[adr + 3 : adr + 7] = quat
+        mujoco.mj_forward(m, d)
+        for c in d.contact[: d.ncon]:
+            if c.dist >= 0:
+                continue
+            bodies = [int(m.geom_bodyid[g]) for g in (c.geom1, c.geom2)]
+            names = [m.body(b).name for b in bodies]
+            hand = [n.startswith(robot.HAND_PREFIX) for n in names]
+            robotic = [
+                n.startswith(robot.ARM_PREFIX) or b == body
+                for n, b in zip(names, bodies, strict=True)
+            ]
+            if body in bodies and any(hand):
+                continue  # the fingers hold the block
+            if body in bodies and "table/table" in names and d.xpos[body][2] < z0 + lift_gap:
+                continue  # lift-off and set-down
+            if robotic[0] != robotic[1]:
+                bad.append((m.geom(c.geom1).name, m.geom(c.geom2).name))
+    return bad
+
+
+def test_delivery_carries_the_block_to_the_place_point_without_collision():
+    world = World.build(load_scene("clutter3"))
+    target = ReachTarget.from_world(world, "pentagon")
+    plan = plan_coarse_reach(world, target)
+    execute_path(world, plan.path.path, hand_q=plan.hand_q)
+    assert fine_reach(world, "pentagon").reached  # fingertips on the block: "holding" it
+    delivery = plan_delivery(world, "pentagon", world.scene.place)
+    assert delivery.found, delivery.reason
+    np.testing.assert_allclose(delivery.block_goal[:2], world.scene.place, atol=2e-3)
+    assert abs(delivery.block_goal[2] - world.block_pose("pentagon")[0][2]) < 2e-3
+    assert carried_contacts(world, "pentagon", delivery.path, 0.02) == []
+    with pytest.raises(ReachError, match="place point"):
+        plan_delivery(world, "pentagon", [np.nan, 0.0])
