@@ -1,4 +1,4 @@
-"""Command line of the grasp core: ``python -m controllers.grasp {trials,score,table1}``.
+"""Command line of the grasp core: ``python -m controllers.grasp {trials,score,table1,reproduce}``.
 
 Results go to stdout as one-line summaries and, with ``--json``, to a JSON file other programs can
 check. Bad input is one line on stderr and exit status 2.
@@ -48,7 +48,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
     poly = _polygon_arg(args)
     if args.rotate:
         poly = poly.rotated(np.deg2rad(args.rotate))
-    composer = make_composer(args.controller, Path(args.models))
+    composer = make_composer(args.controller, Path(args.models), gain=args.gain)
     rng = np.random.default_rng(args.seed)
     batch = PolygonBatch.of([poly])
     start = time.perf_counter()
@@ -154,6 +154,19 @@ def cmd_table1(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from controllers.grasp.reproduce import ReproduceConfig, reproduce
+
+    cfg = ReproduceConfig.quick_run() if args.quick else ReproduceConfig.paper()
+    res = reproduce(Path(args.out), seed=args.seed, config=cfg)
+    avg = {k: f"{v['average_failure']:.2f}" for k, v in res["table2"].items()}
+    print(
+        f"average failure (%): kb {avg['kb']}, ql {avg['ql']}, pi {avg['pi']}, "
+        f"pi (5 objects) {avg['pi5']}; report: {Path(args.out) / 'report.md'}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m controllers.grasp", description=__doc__.splitlines()[0]
@@ -187,6 +200,18 @@ def build_parser() -> argparse.ArgumentParser:
     tb.add_argument("--gain", type=float, default=GAIN)
     tb.add_argument("--json", help="write the rows to this JSON file")
     tb.set_defaults(func=cmd_table1)
+
+    r = sub.add_parser(
+        "reproduce", help="train and test every learned controller; write report, figures, models"
+    )
+    r.add_argument(
+        "--out", required=True, help="output directory (report.md, results.json, PNGs, models)"
+    )
+    r.add_argument(
+        "--quick", action="store_true", help="reduced sizes for CI (well under a minute)"
+    )
+    r.add_argument("--seed", type=int, default=0)
+    r.set_defaults(func=cmd_reproduce)
     return p
 
 
