@@ -68,12 +68,5 @@ def table1_rows(trials: int = 200, seed: int = 0, gain: float = GAIN) -> list[di
     )
     rows = []
     for i, name in enumerate(PAPER_OBJECTS):
-        m = idx == i
-        sub = TrialBatch(
-            *(
-                getattr(result, f)[m] if getattr(result, f) is not None else None
-                for f in result.__dataclass_fields__
-            )
-        )
-        rows.append({"object": name, **trial_summary(sub)})
+        rows.append({"object": name, **trial_summary(result.subset(idx == i))})
     return rows

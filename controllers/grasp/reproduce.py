@@ -153,20 +153,11 @@ def _stderr(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _subset(result: TrialBatch, mask: NDArray[np.bool_]) -> TrialBatch:
-    return TrialBatch(
-        *(
-            getattr(result, f)[mask] if getattr(result, f) is not None else None
-            for f in result.__dataclass_fields__
-        )
-    )
-
-
 def object_rows(result: TrialBatch, names: Sequence[str]) -> dict[str, dict]:
     """Per object: failure rate (%), mean S_G over feasible grasps, infeasible count, mean steps."""
     rows = {}
     for i, name in enumerate(names):
-        sub = _subset(result, result.object_index == i)
+        sub = result.subset(result.object_index == i)
         feas = sub.s_g[sub.feasible]
         rows[name] = {
             "failure": 100.0 * sub.failure_rate,

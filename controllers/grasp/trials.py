@@ -103,6 +103,15 @@ class TrialBatch:
     def failure_rate(self) -> float:
         return float(1.0 - self.success.mean())
 
+    def subset(self, mask: NDArray[np.bool_]) -> TrialBatch:
+        """The trials selected by a boolean (or index) ``mask`` over the batch."""
+        return TrialBatch(
+            **{
+                name: None if value is None else value[mask]
+                for name, value in ((f, getattr(self, f)) for f in self.__dataclass_fields__)
+            }
+        )
+
 
 def random_contacts(
     rng: np.random.Generator, n_trials: int, n_contacts: int
