@@ -14,19 +14,15 @@ from controllers.fine_reach import (
     project_to_surface,
 )
 from controllers.harmonic import ascend
-from controllers.reach import ReachTarget, execute_path, plan_coarse_reach
+from controllers.reach import ReachTarget
 from hand_sim.scene import load_scene
 from hand_sim.world import World
+from tests.reach_fixtures import hover_over_target
 
 
 @pytest.fixture(scope="module")
 def hovering():
-    world = World.build(load_scene("clutter3"))
-    target = ReachTarget.from_world(world, world.scene.target)
-    plan = plan_coarse_reach(world, target)
-    assert plan.found, plan.reason
-    execute_path(world, plan.path.path, hand_q=plan.hand_q)
-    return world, target
+    return hover_over_target()
 
 
 def outline_distance(target: ReachTarget, xy: np.ndarray) -> np.ndarray:

@@ -14,19 +14,13 @@ from controllers.posture import (
     solve_posture,
     world_log_manipulability,
 )
-from controllers.reach import ReachTarget, execute_path, plan_coarse_reach
-from hand_sim.scene import load_scene
-from hand_sim.world import World
+from tests.reach_fixtures import hover_over_target
 
 
 @pytest.fixture(scope="module")
 def hovering():
     """clutter3 with the arm driven (in simulation) to the coarse-reach goal above the target."""
-    world = World.build(load_scene("clutter3"))
-    plan = plan_coarse_reach(world, ReachTarget.from_world(world, world.scene.target))
-    assert plan.found, plan.reason
-    execute_path(world, plan.path.path, hand_q=plan.hand_q)
-    return world
+    return hover_over_target()[0]
 
 
 def test_manipulability_matches_a_finite_difference_jacobian(hovering):
