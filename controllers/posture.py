@@ -35,6 +35,8 @@ TIP_TOLERANCE = 1e-3
 IK_DT = 0.05
 QP_SOLVER = "daqp"
 IK_DAMPING = 1e-3
+#: Fingertip-only IK steps after each manipulability step, to pull the tips back on target.
+TIP_RECOVERY_STEPS = 3
 #: Fingertip FrameTask cost and LM damping (STACK.md pattern).
 TIP_COST = 1.0
 TIP_LM_DAMPING = 1e-3
@@ -229,15 +231,19 @@ def solve_posture(
     def tip_error() -> NDArray[np.float64]:
         return np.linalg.norm(cfg.data.site_xpos[idx.tip_sites] - goal, axis=1)
 
+    def ik_step(tasks: list[mink.Task]) -> None:
+        """One damped differential-IK step of ``tasks`` within the limits, integrated in place."""
+        v = mink.solve_ik(
+            cfg, tasks, IK_DT, QP_SOLVER, damping=IK_DAMPING, limits=limits, constraints=constraints
+        )
+        cfg.integrate_inplace(v, IK_DT)
+
     m_start = log_manipulability(model, cfg.data, idx)
     iterations = 0
     for _ in range(reach_iterations):
         if tip_error().max() < 0.5 * tolerance:
             break
-        v = mink.solve_ik(
-            cfg, tips, IK_DT, QP_SOLVER, damping=IK_DAMPING, limits=limits, constraints=constraints
-        )
-        cfg.integrate_inplace(v, IK_DT)
+        ik_step(tips)
         iterations += 1
     err = tip_error()
     if err.max() < tolerance and optimize:
@@ -245,28 +251,10 @@ def solve_posture(
         history = [log_manipulability(model, cfg.data, idx)]
         for _ in range(posture_iterations):
             q_before = cfg.q.copy()
-            v = mink.solve_ik(
-                cfg,
-                [*tips, manip],
-                IK_DT,
-                QP_SOLVER,
-                damping=IK_DAMPING,
-                limits=limits,
-                constraints=constraints,
-            )
-            cfg.integrate_inplace(v, IK_DT)
+            ik_step([*tips, manip])
             # let the fingertip tasks alone pull the tips back onto their targets
-            for _ in range(3):
-                v = mink.solve_ik(
-                    cfg,
-                    tips,
-                    IK_DT,
-                    QP_SOLVER,
-                    damping=IK_DAMPING,
-                    limits=limits,
-                    constraints=constraints,
-                )
-                cfg.integrate_inplace(v, IK_DT)
+            for _ in range(TIP_RECOVERY_STEPS):
+                ik_step(tips)
             iterations += 1
             value = log_manipulability(model, cfg.data, idx)
             if tip_error().max() > 0.5 * tolerance or not value > history[-1]:
