@@ -40,13 +40,34 @@ def describe(model: ObjectModel) -> str:
     )
 
 
+#: Overlay drawing: colour (BGR) and the image width at which lines are 1 px thick.
+OVERLAY_COLOUR = (255, 0, 255)
+OVERLAY_REFERENCE_WIDTH = 640
+
+
 def write_overlay(path: str, obs: Observation, model: ObjectModel) -> None:
     """The overhead image with the model's contour drawn on it (PNG)."""
     import cv2
 
     img = np.ascontiguousarray(obs.rgb[:, :, ::-1])
-    pts = np.rint(model.pixel_contour * 16).astype(np.int32)
-    cv2.polylines(img, [pts], True, (255, 0, 255), 1, cv2.LINE_AA, 4)
+    scale = max(1, round(img.shape[1] / OVERLAY_REFERENCE_WIDTH))  # thicker lines on big images
+    pts = np.rint(model.pixel_contour * 16).astype(np.int32)  # 4 fractional bits
+    cv2.polylines(img, [pts], True, OVERLAY_COLOUR, scale, cv2.LINE_AA, 4)
+    for p in pts:
+        cv2.circle(
+            img, tuple(int(c) for c in p), 16 * 2 * scale, OVERLAY_COLOUR, -1, cv2.LINE_AA, 4
+        )
+    u, v = np.rint(model.pixel_contour.max(axis=0)).astype(int)
+    cv2.putText(
+        img,
+        f"{model.name}: {model.n_edges} edges",
+        (int(u) + 6 * scale, int(v)),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.35 * scale,
+        OVERLAY_COLOUR,
+        scale,
+        cv2.LINE_AA,
+    )
     if not cv2.imwrite(path, img):
         raise VisionError(f"could not write the overlay image {path!r}")
 
