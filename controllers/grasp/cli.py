@@ -102,7 +102,8 @@ def cmd_trials(args: argparse.Namespace) -> int:
 def cmd_score(args: argparse.Namespace) -> int:
     raw = parse_points(args.polygon)
     poly = Polygon.from_vertices(raw, name="user")
-    points = parse_points(args.points, what="points") - centroid_of(raw)
+    centroid = centroid_of(raw)
+    points = parse_points(args.points, what="points") - centroid
     theta = poly.theta_of(points)
     frames = poly.locate(theta)
     off = np.linalg.norm(frames.point - points, axis=1)
@@ -110,7 +111,7 @@ def cmd_score(args: argparse.Namespace) -> int:
     if bad.size:
         i = int(bad[0])
         raise PolygonError(
-            f"point {i} {tuple(float(c) for c in points[i] + centroid_of(raw))} "
+            f"point {i} {tuple(float(c) for c in points[i] + centroid)} "
             f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
         )
     scale = 1.0 / poly.max_moment
