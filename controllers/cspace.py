@@ -101,7 +101,9 @@ class CollisionChecker:
     ``hand_q`` (default: its current joint angles). ``clearance`` (m) is the distance below
     which a robot-obstacle pair counts as a collision. ``carried`` names a block held in the
     hand: it then moves rigidly with the palm (its pose relative to the palm as in ``world``
-    now) and counts as part of the hand (delivery: "navigate the hand/arm/object").
+    now) and counts as part of the hand (delivery: "navigate the hand/arm/object"). ``model`` is
+    the model to copy instead of the world's (same state layout), e.g. a
+    :func:`controllers.planning_model.planning_model` holding the perceived target.
     """
 
     def __init__(
@@ -111,13 +113,18 @@ class CollisionChecker:
         clearance: float = DEFAULT_CLEARANCE,
         hand_q: ArrayLike | None = None,
         carried: str | None = None,
+        model: mujoco.MjModel | None = None,
     ) -> None:
         if not world.with_robot:
             raise ReachError("the world was built with with_robot=False: nothing to plan for")
         if not 0.0 <= clearance < 0.2:
             raise ReachError(f"clearance must lie in [0, 0.2) m, got {clearance}")
         self.clearance = float(clearance)
-        self.model = copy.deepcopy(world.model)
+        if model is not None and model.nq != world.model.nq:
+            raise ReachError(
+                f"a planning model needs the world's {world.model.nq} qpos, got {model.nq}"
+            )
+        self.model = copy.deepcopy(world.model if model is None else model)
         self.data = mujoco.MjData(self.model)
         self.data.qpos[:] = world.data.qpos
         arm_j = _joint_ids(self.model, robot.ARM_JOINTS)

@@ -39,6 +39,11 @@ IK_DAMPING = 1e-3
 TIP_RECOVERY_STEPS = 3
 #: Fingertip FrameTask cost and LM damping (STACK.md pattern).
 TIP_COST = 1.0
+#: Cost of the pad-centre targets that turn each pad towards its surface (see solve_posture).
+PAD_CENTRE_COST = 0.3
+#: The pad-centre targets have settled when their summed error shrinks less than this per
+#: iteration (m).
+PAD_SETTLED = 1e-5
 TIP_LM_DAMPING = 1e-3
 #: Manipulability task cost and desired decrease of -2M per IK step.
 MANIPULABILITY_COST = 0.05
@@ -53,6 +58,13 @@ POSTURE_MIN_GAIN = 1e-3
 POSTURE_WINDOW = 20
 #: Which joints posture control may move.
 JOINT_SETS: tuple[str, ...] = ("arm+hand", "hand")
+#: Collision avoidance (mink CollisionAvoidanceLimit) between the robot's geoms and the
+#: environment's (table, blocks): the distance kept (m), the distance at which the limit engages
+#: (m) and its gain. Without it, moving the arm to hold the fingertips swept the palm through the
+#: block it was about to grasp.
+AVOID_DISTANCE = 0.002
+AVOID_DETECTION = 0.02
+AVOID_GAIN = 0.85
 
 
 @dataclass(frozen=True)
@@ -175,6 +187,29 @@ class PostureResult:
     unreachable: tuple[str, ...]
 
 
+def robot_environment_pairs(
+    model: mujoco.MjModel, touchable: str | None = None
+) -> list[tuple[list[int], list[int]]]:
+    """Geom groups for collision avoidance: every colliding robot geom against every colliding
+    geom that is not the robot's (table top, blocks; not the floor the robot stands on). The
+    fingertip pads may touch the geom named ``touchable`` (the block to grasp): they are kept off
+    everything else, every other robot geom off everything."""
+    active = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    pads = {model.geom(robot.hand_name(f"{f}_pad")).id for f in robot.FINGERS}
+    robot_geoms, env_geoms = [], []
+    for g in np.flatnonzero(active):
+        name = model.body(model.geom_bodyid[g]).name
+        if name.startswith(robot.ARM_PREFIX):
+            robot_geoms.append(int(g))
+        elif model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
+            env_geoms.append(int(g))
+    if touchable is None:
+        return [(robot_geoms, env_geoms)]
+    target = model.geom(touchable).id
+    others = [g for g in env_geoms if g != target]
+    return [(robot_geoms, others), ([g for g in robot_geoms if g not in pads], [target])]
+
+
 def _frozen_dofs(model: mujoco.MjModel, idx: HandIndices, joints: str) -> list[int]:
     movable = set(idx.finger_dofs.ravel().tolist())
     if joints == "arm+hand":
@@ -191,21 +226,40 @@ def solve_posture(
     tolerance: float = TIP_TOLERANCE,
     reach_iterations: int = REACH_ITERATIONS,
     posture_iterations: int = POSTURE_ITERATIONS,
+    qpos: ArrayLike | None = None,
+    model: mujoco.MjModel | None = None,
+    avoid_collisions: bool = False,
+    touchable: str | None = None,
+    pad_centres: ArrayLike | None = None,
 ) -> PostureResult:
-    """Kinematic posture control from the world's current state (the world is not changed).
+    """Kinematic posture control from the world's current state, or from ``qpos`` (the world is
+    not changed).
 
     First the fingertips are brought to ``targets`` (4, 3) (default: where they are now); if a
     target stays farther than ``tolerance`` the result is ``reachable=False``. Then, if
     ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold the tips;
     a step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
     ``"arm+hand"`` (posture control) or ``"hand"`` (fingers only); other joints are frozen.
+    ``model`` replaces the world's model (same state layout; e.g. the planning model holding the
+    perceived target, :mod:`controllers.planning_model`). ``avoid_collisions`` keeps every robot
+    geom :data:`AVOID_DISTANCE` from the table and the blocks (mink's collision avoidance limit),
+    except that the fingertip pads may touch (and, kinematically, press into) the geom named
+    ``touchable``. ``pad_centres`` (4, 3), if given,
+    are targets of the centres of the fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`)
+    at a lower cost: with a fingertip target on a surface point and its pad centre one pad radius
+    out along the surface normal, the pad, not the side or the end of the finger, faces the
+    surface (position-only IK leaves each finger one redundant degree of freedom, its pad's
+    orientation).
     """
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
-    model = world.model
+    model = world.model if model is None else model
     idx = HandIndices.of(model)
     cfg = mink.Configuration(model)
-    cfg.update(world.data.qpos.copy())
+    start = world.data.qpos if qpos is None else np.asarray(qpos, dtype=float)
+    if start.shape != (model.nq,) or not np.all(np.isfinite(start)):
+        raise PostureError(f"qpos must be {model.nq} finite numbers, got shape {start.shape}")
+    cfg.update(start.copy())
     goal = (
         cfg.data.site_xpos[idx.tip_sites].copy()
         if targets is None
@@ -224,7 +278,33 @@ def solve_posture(
         )
         task.set_target(mink.SE3.from_translation(p))
         tips.append(task)
-    limits = [mink.ConfigurationLimit(model)]
+    pads = []
+    if pad_centres is not None:
+        centres = np.asarray(pad_centres, dtype=float)
+        if centres.shape != goal.shape or not np.all(np.isfinite(centres)):
+            raise PostureError(f"pad centres must be a finite (4, 3) array, got {centres.shape}")
+        for site, p in zip(robot.PAD_CENTRE_SITES, centres, strict=True):
+            task = mink.FrameTask(
+                robot.qualified(site),
+                "site",
+                position_cost=PAD_CENTRE_COST,
+                orientation_cost=0.0,
+                lm_damping=TIP_LM_DAMPING,
+            )
+            task.set_target(mink.SE3.from_translation(p))
+            pads.append(task)
+    tips_and_pads = tips + pads
+    limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
+    if avoid_collisions:
+        limits.append(
+            mink.CollisionAvoidanceLimit(
+                model,
+                robot_environment_pairs(model, touchable),
+                gain=AVOID_GAIN,
+                minimum_distance_from_collisions=AVOID_DISTANCE,
+                collision_detection_distance=AVOID_DETECTION,
+            )
+        )
     frozen = _frozen_dofs(model, idx, joints)
     constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
 
@@ -240,10 +320,20 @@ def solve_posture(
 
     m_start = log_manipulability(model, cfg.data, idx)
     iterations = 0
+    pad_sites = np.array([model.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES])
+
+    def pad_error() -> float:
+        if not pads:
+            return 0.0
+        return float(np.linalg.norm(cfg.data.site_xpos[pad_sites] - centres, axis=1).sum())
+
+    last_pad = np.inf
     for _ in range(reach_iterations):
-        if tip_error().max() < 0.5 * tolerance:
+        now_pad = pad_error()
+        if tip_error().max() < 0.5 * tolerance and last_pad - now_pad < PAD_SETTLED:
             break
-        ik_step(tips)
+        last_pad = now_pad
+        ik_step(tips_and_pads)
         iterations += 1
     err = tip_error()
     if err.max() < tolerance and optimize:
@@ -251,10 +341,10 @@ def solve_posture(
         history = [log_manipulability(model, cfg.data, idx)]
         for _ in range(posture_iterations):
             q_before = cfg.q.copy()
-            ik_step([*tips, manip])
+            ik_step([*tips_and_pads, manip])
             # let the fingertip tasks alone pull the tips back onto their targets
             for _ in range(TIP_RECOVERY_STEPS):
-                ik_step(tips)
+                ik_step(tips_and_pads)
             iterations += 1
             value = log_manipulability(model, cfg.data, idx)
             if tip_error().max() > 0.5 * tolerance or not value > history[-1]:

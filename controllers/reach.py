@@ -61,8 +61,11 @@ PRESHAPE: tuple[float, ...] = (0.0, 1.3, 0.15, 0.1) * 3 + (0.0, 1.3, 0.15, 0.1)
 FINGER_REACH = 0.11
 #: Free space kept between the pre-shaped fingertips and the block at the goal (m).
 APPROACH_GAP = 0.04
-#: Lateral approach: height of the palm centre below the block's top (m).
-LATERAL_DEPTH = 0.06
+#: Lateral approach: height of the palm centre below the block's top (m). The palm's finger row
+#: is horizontal (thumb below, fingers above, or the reverse), so the thumb knuckle sits 4.5 cm
+#: below the palm centre and the middle finger's 5.8 cm above it: 0.10 m puts all four fingertips
+#: on a 20 cm block's side faces with the palm's lower edge 5 cm above the table.
+LATERAL_DEPTH = 0.10
 
 #: Arm joint speed (rad/s) while executing a path, control period (s) and settling time (s).
 MAX_JOINT_SPEED = 0.8
@@ -183,8 +186,16 @@ def _frame(y: NDArray[np.float64], z: NDArray[np.float64]) -> NDArray[np.float64
 def goal_poses(
     target: ReachTarget, base_xy: ArrayLike
 ) -> dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]:
-    """Palm poses (position, rotation) of each approach; the two signs of the grasp axis give
-    two candidates per approach (the hand turned by pi about its approach axis)."""
+    """Palm poses (position, rotation) of each approach; two candidates per approach (the hand
+    turned by pi about its approach axis).
+
+    Top: palm down, the thumb-to-middle-finger axis (hand y) across the block's narrowest width.
+    Lateral: palm facing the block along the arm's radial direction, hand y vertical, so the
+    finger row (hand x) is horizontal: the first and ring fingers close on the block's sides
+    from left and right while the middle finger and the thumb face it from above and below the
+    palm centre. (With the finger row vertical instead, three fingers stack on one face against
+    the thumb, a grasp S_G rejects: ``benchmarks.hand_reachability`` finds lateral grasps with
+    S_G <= 0.3 for this roll only.)"""
     centre = np.array([*target.position_xy, 0.0])
     radial = centre - np.array([*np.asarray(base_xy, float), 0.0])
     radial[2] = 0.0
@@ -192,12 +203,12 @@ def goal_poses(
     down = np.array([0.0, 0.0, -1.0])
     top_pos = centre + np.array([0.0, 0.0, target.top_z + FINGER_REACH + APPROACH_GAP])
     axis = _grasp_axis(target)
-    lateral_y = np.cross([0.0, 0.0, 1.0], radial)
+    up = np.array([0.0, 0.0, 1.0])
     standoff = target.radius + FINGER_REACH + APPROACH_GAP
     lat_pos = centre - standoff * radial + np.array([0.0, 0.0, target.top_z - LATERAL_DEPTH])
     return {
         "top": [(top_pos, _frame(s * axis, down)) for s in (1.0, -1.0)],
-        "lateral": [(lat_pos, _frame(s * lateral_y, radial)) for s in (1.0, -1.0)],
+        "lateral": [(lat_pos, _frame(s * up, radial)) for s in (1.0, -1.0)],
     }
 
 
@@ -497,14 +508,18 @@ def execute_path(
     return Execution(tuple(sorted(seen)), err, world.time - t0)
 
 
-#: Delivery: height (m) the carried block is lifted off the table before the transit.
+#: Delivery: height (m) of the carried block's bottom above the table during the transit, and
+#: where the planned set-down ends (the last part is sensed: controllers.transport).
 LIFT_HEIGHT = 0.05
+SET_DOWN_HOVER = 0.02
 
 
 @dataclass(frozen=True, eq=False)
 class DeliveryPlan:
-    """A path carrying a grasped block to a place point: straight lift, harmonic transit (the
-    coarse-reach planner with the block as part of the hand), straight set-down."""
+    """A path carrying a grasped block to a place point: straight up to the carry height (if the
+    block is not there yet), harmonic transit (the coarse-reach planner with the block as part
+    of the hand), straight down until the block's bottom hovers ``SET_DOWN_HOVER`` above the
+    table."""
 
     found: bool
     path: NDArray[np.float64]  #: (k, 5) arm postures, start first
@@ -523,20 +538,32 @@ def plan_delivery(
     block: str,
     place_xy: ArrayLike,
     *,
+    block_height: float | None = None,
     resolution: int = DEFAULT_RESOLUTION,
     lift: float = LIFT_HEIGHT,
+    hover: float = SET_DOWN_HOVER,
     clearance: float = DEFAULT_CLEARANCE,
 ) -> DeliveryPlan:
-    """Plan to carry ``block`` (held by the hand now) to ``place_xy`` on the table (section 5.2,
-    "Deliver": "the path is computed by the same harmonic path planning algorithm used in the
-    coarse reach module"). Postures are checked with the block moving rigidly with the palm;
-    the first and last ``2 * clearance`` of the lift and set-down, where the block touches the
-    table, are exempt."""
+    """Plan to carry ``block`` (held by the hand now, on the table or already lifted) to
+    ``place_xy`` on the table (section 5.2, "Deliver": "the path is computed by the same harmonic
+    path planning algorithm used in the coarse reach module").
+
+    Heights come from the table and the block's height (``block_height``, e.g. the perceived
+    one; default the scene's), not from where the block is now: the transit carries the block's
+    bottom at least ``lift`` above the table, and the path ends with it ``hover`` above the table
+    at the place point (the rest of the set-down is sensed). Postures are checked with the block
+    moving rigidly with the palm; where it is within ``2 * clearance`` of the table (lift-off and
+    set-down) the block-table pair is exempt."""
     place = np.asarray(place_xy, dtype=float)
     if place.shape != (2,) or not np.all(np.isfinite(place)):
         raise ReachError(f"place point must be a finite (x, y), got {place_xy!r}")
     if not clearance < lift < 0.5:
         raise ReachError(f"lift must lie in ({clearance}, 0.5) m, got {lift}")
+    if not 0.0 <= hover < lift:
+        raise ReachError(f"hover must lie in [0, lift = {lift}) m, got {hover}")
+    height = world.scene.block(block).height if block_height is None else float(block_height)
+    if not (np.isfinite(height) and height > 0):
+        raise ReachError(f"block height must be a positive number of metres, got {block_height}")
     checker = CollisionChecker(world, clearance=clearance, hand_q=world.hand_qpos(), carried=block)
     q0 = world.arm_qpos()
     empty = np.stack([q0])
@@ -546,35 +573,44 @@ def plan_delivery(
 
     p0, R0 = checker.palm_pose(q0)
     b0, _ = checker.carried_pose(q0)
-    up = np.array([0.0, 0.0, lift])
-    near = np.array([0.0, 0.0, 2.0 * clearance])
-    lift_ik = checker.solve_ik(p0 + up, R0, q0)
-    free_ik = checker.solve_ik(p0 + near, R0, q0)
-    if not (lift_ik.found and free_ik.found):
-        return fail("the block cannot be lifted straight up from here")
-    if first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
-        return fail("lifting the block collides")
+    table = world.scene.table.height
+    carry_z = max(b0[2], table + 0.5 * height + lift)
+    down_z = table + 0.5 * height + hover
+    up = np.array([0.0, 0.0, carry_z - b0[2]])
+    start = q0
+    if up[2] > 1e-4:
+        lift_ik = checker.solve_ik(p0 + up, R0, q0)
+        # the block may touch the table in the first 2 * clearance of the lift
+        clear = min(up[2], 2.0 * clearance)
+        free_ik = checker.solve_ik(p0 + np.array([0.0, 0.0, clear]), R0, q0)
+        if not (lift_ik.found and free_ik.found):
+            return fail("the block cannot be lifted straight up from here")
+        if first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
+            return fail("lifting the block collides")
+        start = lift_ik.q
     base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id]
     turn = float(
         np.arctan2(place[1] - base[1], place[0] - base[0])
         - np.arctan2(b0[1] - base[1], b0[0] - base[0])
     )
-    shift = np.array([*(place - b0[:2]), 0.0])
+    shift = np.array([*(place - b0[:2]), carry_z - b0[2]])
+    drop = np.array([0.0, 0.0, down_z - carry_z])
     high = down = None
     for R in (R0, _rotate_z(turn) @ R0):
-        # the palm moves so that the block's centre lands on the place point
-        p_high = b0 + shift + up + R @ R0.T @ (p0 - b0)
-        seed = np.array([lift_ik.q[0] + turn, *lift_ik.q[1:]])
+        # the palm moves so that the block's centre lands above the place point
+        p_high = b0 + shift + R @ R0.T @ (p0 - b0)
+        seed = np.array([start[0] + turn, *start[1:]])
         h = checker.solve_ik(p_high, R, seed)
-        d = checker.solve_ik(p_high - up, R, h.q)
-        e = checker.solve_ik(p_high - up + near, R, h.q)
-        ok = h.found and d.found and e.found and not checker.collides(h.q)
-        if ok and first_collision(checker, np.stack([h.q, e.q])) is None:
+        d = checker.solve_ik(p_high + drop, R, h.q)
+        ok = h.found and d.found and not checker.collides(h.q)
+        # the set-down may graze the table only in its last 2 * clearance
+        near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
+        if ok and near.found and first_collision(checker, np.stack([h.q, near.q])) is None:
             high, down = h.q, d.q
             break
     if high is None or down is None:
         return fail("no collision-free posture above the place point")
-    transit = plan_arm_path(checker, lift_ik.q, high, resolution=resolution)
+    transit = plan_arm_path(checker, start, high, resolution=resolution)
     if not transit.found:
         return fail(f"transit: {transit.reason}", transit)
     path = _dedupe(np.vstack([q0[None], transit.path, down[None]]))

@@ -18,9 +18,10 @@ from hand_sim.scene import BlockSpec
 #: Density of a hardwood such as maple or beech (kg/m^3).
 WOOD_DENSITY = 700.0
 #: Friction of the block's surface (sliding, torsional m, rolling m). MuJoCo combines the two geoms
-#: of a contact by taking the larger coefficient, so fingertips with more grip dominate; 0.6 is a
-#: dry wood-on-wood / wood-on-laminate coefficient that keeps blocks from sliding on the table.
-BLOCK_FRICTION = (0.6, 0.005, 0.0001)
+#: of a contact by taking the larger coefficient, so the table (models/table.xml) carries the same
+#: 0.45, a dry wood-on-lacquered-wood value (docs/models.md); the fingertip pads take precedence
+#: (``priority``) with their own 1.0.
+BLOCK_FRICTION = (0.45, 0.005, 0.0001)
 #: Suffixes of the MJCF elements made for block ``name``.
 MESH_SUFFIX, GEOM_SUFFIX, JOINT_SUFFIX = "_mesh", "_geom", "_free"
 

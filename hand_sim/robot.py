@@ -31,12 +31,32 @@ HAND_ACTUATORS: tuple[str, ...] = tuple(
     f"{f}a{i}" for f in FINGERS for i in range(JOINTS_PER_FINGER)
 )
 FINGERTIP_SITES: tuple[str, ...] = tuple(f"{f}_tip" for f in FINGERS)
+#: Centre of each fingertip's rounded end: the tip site lies one pad radius from it, along the
+#: pad normal (30 deg from the palmar normal towards the tip).
+PAD_CENTRE_SITES: tuple[str, ...] = tuple(f"{f}_pad_centre" for f in FINGERS)
+#: Radius (m) of the fingertip pads (models/hand.xml).
+PAD_RADIUS = 0.0085
 TOUCH_SENSORS: tuple[str, ...] = tuple(f"{f}_touch" for f in FINGERS)
 PALM_BODY = "palm"
+#: The hand's mount site (its frame at the back of the palm) and the wrist force/torque sensors
+#: there (force, torque).
+MOUNT_SITE = "mount"
+WRIST_SENSORS: tuple[str, ...] = ("wrist_force", "wrist_torque")
+#: Links of a finger, palm side first, as the hand model names its bodies (``ff_proximal``...).
+FINGER_LINKS: tuple[str, ...] = ("proximal", "middle", "distal")
 
 _ARM_NAMES = frozenset((*ARM_JOINTS, *ARM_ACTUATORS, ATTACHMENT_SITE))
 _HAND_NAMES = frozenset(
-    (*HAND_JOINTS, *HAND_ACTUATORS, *FINGERTIP_SITES, *TOUCH_SENSORS, PALM_BODY)
+    (
+        *HAND_JOINTS,
+        *HAND_ACTUATORS,
+        *FINGERTIP_SITES,
+        *TOUCH_SENSORS,
+        PALM_BODY,
+        MOUNT_SITE,
+        *PAD_CENTRE_SITES,
+        *WRIST_SENSORS,
+    )
 )
 
 

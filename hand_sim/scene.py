@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,9 +44,33 @@ TABLE_EDGE_MARGIN = 0.005
 MIN_BLOCK_EXTENT, MAX_BLOCK_EXTENT = 0.01, 0.30
 MIN_BLOCK_HEIGHT, MAX_BLOCK_HEIGHT = 0.01, 0.50
 
-#: Table top (must agree with models/table.xml): full size x, y (m), top height (m), centre x, y.
-DEFAULT_TABLE_SIZE = (0.9, 0.9)
-DEFAULT_TABLE_HEIGHT = 0.75
+#: The table model: one source of truth for the table top's size and height (its collision box
+#: ``table_top``); a scene may move the table (``position``) but not resize or raise it.
+TABLE_MODEL_FILE = Path(__file__).resolve().parent.parent / "models" / "table.xml"
+TABLE_TOP_GEOM = "table_top"
+#: Largest difference (m) tolerated between a scene's table ``size``/``height`` and the model's.
+TABLE_TOLERANCE = 1e-3
+
+
+def table_model_top(path: Path = TABLE_MODEL_FILE) -> tuple[tuple[float, float], float]:
+    """Full size (x, y) and top height (m) of the table model's collision top, read from its MJCF
+    (a box geom ``table_top`` under the table body, model frame on the floor)."""
+    try:
+        root = ElementTree.parse(path).getroot()
+    except (OSError, ElementTree.ParseError) as e:
+        raise SceneError(f"{path}: the table model cannot be read: {e}") from e
+    geom = next((g for g in root.iter("geom") if g.get("name") == TABLE_TOP_GEOM), None)
+    if geom is None or geom.get("type") != "box":
+        raise SceneError(f"{path}: no box geom {TABLE_TOP_GEOM!r} (the table's collision top)")
+    size = [float(v) for v in geom.get("size", "").split()]
+    pos = [float(v) for v in geom.get("pos", "0 0 0").split()]
+    if len(size) != 3 or len(pos) != 3:
+        raise SceneError(f"{path}: geom {TABLE_TOP_GEOM!r} needs a 3-number size and pos")
+    return (2.0 * size[0], 2.0 * size[1]), pos[2] + size[2]
+
+
+#: Table top: full size x, y (m) and top height (m) from the model, centre x, y (m) by default.
+DEFAULT_TABLE_SIZE, DEFAULT_TABLE_HEIGHT = table_model_top()
 DEFAULT_TABLE_POSITION = (0.0, 0.0)
 
 #: Named block colours (rgba in [0, 1]), all far from the table's light wood so that the overhead
@@ -166,12 +191,26 @@ def load_scene(
 
 
 def parse_table(source: str, raw: Any) -> TableSpec:
-    """The ``[table]`` section (every key optional)."""
+    """The ``[table]`` section (every key optional). The table model (models/table.xml) fixes the
+    top's size and height: a ``size`` or ``height`` that disagrees with it is refused, so that the
+    table drawn, the table blocks stand on and the table the scene checks are one table."""
     f = TomlFields(source, "table", raw, _TABLE_KEYS)
     size = f.pair("size", DEFAULT_TABLE_SIZE)
-    if min(size) <= 0.0:
-        f.fail("size", f"must be positive, got {list(size)}")
+    if max(abs(a - b) for a, b in zip(size, DEFAULT_TABLE_SIZE, strict=True)) > TABLE_TOLERANCE:
+        f.fail(
+            "size",
+            f"{list(size)} m differs from the table model's top "
+            f"({DEFAULT_TABLE_SIZE[0]:g} x {DEFAULT_TABLE_SIZE[1]:g} m, models/table.xml); "
+            "leave 'size' out or match the model",
+        )
     height = f.number("height", DEFAULT_TABLE_HEIGHT, lo=0.0, hi=2.0)
+    if abs(height - DEFAULT_TABLE_HEIGHT) > TABLE_TOLERANCE:
+        f.fail(
+            "height",
+            f"{height:g} m differs from the table model's top height "
+            f"({DEFAULT_TABLE_HEIGHT:g} m, models/table.xml); "
+            "leave 'height' out or match the model",
+        )
     position = f.pair("position", DEFAULT_TABLE_POSITION)
     return TableSpec(size_xy=size, height=height, position_xy=position)
 

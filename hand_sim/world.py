@@ -9,6 +9,7 @@ NaN or a MuJoCo instability warning.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,6 +57,9 @@ class _Indices:
     hand_ctrl: NDArray[np.int64]
     tip_sites: NDArray[np.int64]
     touch_adr: NDArray[np.int64]
+    wrist_force_adr: int
+    wrist_torque_adr: int
+    mount_site: int
     block_bodies: dict[str, int]
     block_qpos: dict[str, int]
 
@@ -86,6 +90,9 @@ class World:
         self.with_robot = with_robot
         self._idx = self._resolve()
         self._warnings = self._warning_counts()
+        #: Called with the world after every :meth:`step` call (a controller steps once per
+        #: control period): an episode's recorder and clock hook in here.
+        self.on_step: Callable[[World], None] | None = None
 
     # --- construction ----------------------------------------------------------------------
     @classmethod
@@ -128,6 +135,8 @@ class World:
         hand_a = ids(obj.mjOBJ_ACTUATOR, robot.HAND_ACTUATORS)
         tips = ids(obj.mjOBJ_SITE, robot.FINGERTIP_SITES)
         touch = m.sensor_adr[ids(obj.mjOBJ_SENSOR, robot.TOUCH_SENSORS)]
+        wrist = m.sensor_adr[ids(obj.mjOBJ_SENSOR, robot.WRIST_SENSORS)]
+        mount = ids(obj.mjOBJ_SITE, (robot.MOUNT_SITE,))
         bodies = {b.name: _element_id(m, obj.mjOBJ_BODY, b.name) for b in self.scene.blocks}
         qpos = {
             b.name: int(m.jnt_qposadr[_element_id(m, obj.mjOBJ_JOINT, b.name + JOINT_SUFFIX)])
@@ -142,6 +151,9 @@ class World:
             hand_ctrl=hand_a,
             tip_sites=tips,
             touch_adr=np.asarray(touch, dtype=np.int64),
+            wrist_force_adr=int(wrist[0]) if len(wrist) else -1,
+            wrist_torque_adr=int(wrist[1]) if len(wrist) else -1,
+            mount_site=int(mount[0]) if len(mount) else -1,
             block_bodies=bodies,
             block_qpos=qpos,
         )
@@ -184,6 +196,8 @@ class World:
             raise HandSimError(f"step count must be >= 0, got {n}")
         mujoco.mj_step(self.model, self.data, nstep=n)
         self.check()
+        if self.on_step is not None:
+            self.on_step(self)
 
     def check(self) -> None:
         """Raise :class:`SimulationError` if the state holds NaN/inf or MuJoCo raised a warning."""
@@ -327,6 +341,18 @@ class World:
         return self.data.site_xpos[self._idx.tip_sites].copy()
 
     def touch(self) -> NDArray[np.float64]:
-        """(4,) fingertip touch sensor readings (N), order ff, mf, rf, th."""
+        """(4,) fingertip touch sensor readings (N), order ff, mf, rf, th: the normal force on the
+        palmar side and tip of each distal pad (contacts on the back of a fingertip, or on other
+        finger links, are not felt; :func:`hand_sim.contacts.hand_contacts` lists those)."""
         self._require_robot()
         return self.data.sensordata[self._idx.touch_adr].copy()
+
+    def wrist_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The wrist force/torque sensor between the arm's flange and the hand: force (3,) in N
+        and torque (3,) in N m that the flange exerts on the hand, in world axes. With the hand
+        at rest it carries the hand's weight plus whatever the hand holds."""
+        self._require_robot()
+        i, j = self._idx.wrist_force_adr, self._idx.wrist_torque_adr
+        R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
+        d = self.data.sensordata
+        return R @ d[i : i + 3], R @ d[j : j + 3]

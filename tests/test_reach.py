@@ -14,6 +14,7 @@ from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.reach import (
     PRESHAPE,
+    SET_DOWN_HOVER,
     ReachTarget,
     execute_path,
     plan_arm_path,
@@ -138,10 +139,12 @@ def test_far_target_plans_both_approaches_and_picks_the_shorter():
     assert all(p.found for p in plan.candidates.values())
     lengths = {a: p.length for a, p in plan.candidates.items()}
     assert plan.approach == min(lengths, key=lengths.get)
-    assert plan.approach == "lateral"
-    # the lateral goal puts the approach axis horizontal, pointing at the block
+    # the lateral goal puts the approach axis horizontal, pointing at the block, and the finger
+    # row (hand x) horizontal: hand y vertical
+    lateral = plan_coarse_reach(world, target, approaches=("lateral",))
     checker = CollisionChecker(world, hand_q=plan.hand_q)
-    pos, rot = checker.palm_pose(plan.path.path[-1])
+    pos, rot = checker.palm_pose(lateral.path.path[-1])
+    assert abs(rot[2, 0]) < 0.01 and abs(abs(rot[2, 1]) - 1.0) < 0.01
     to_block = np.array([*target.position_xy, pos[2]]) - pos
     assert abs(rot[2, 2]) < 0.01
     assert rot[:, 2] @ to_block / np.linalg.norm(to_block) > 0.99
@@ -204,7 +207,8 @@ def test_delivery_carries_the_block_to_the_place_point_without_collision():
     delivery = plan_delivery(world, "pentagon", world.scene.place)
     assert delivery.found, delivery.reason
     np.testing.assert_allclose(delivery.block_goal[:2], world.scene.place, atol=2e-3)
-    assert abs(delivery.block_goal[2] - world.block_pose("pentagon")[0][2]) < 2e-3
+    table, height = world.scene.table.height, world.scene.block("pentagon").height
+    assert abs(delivery.block_goal[2] - (table + 0.5 * height + SET_DOWN_HOVER)) < 2e-3
     assert carried_contacts(world, "pentagon", delivery.path, 0.02) == []
     with pytest.raises(ReachError, match="place point"):
         plan_delivery(world, "pentagon", [np.nan, 0.0])

@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.grasp import paper_object
 from hand_sim import robot
 from hand_sim.errors import HandSimError, SceneError, SimulationError
 from hand_sim.scene import load_scene, scene_names
@@ -150,13 +151,78 @@ def test_world_without_robot_has_no_arm() -> None:
         world.arm_qpos()
 
 
-def test_scene_table_must_match_the_table_model(tmp_path) -> None:
-    path = tmp_path / "high_table.toml"
+@pytest.mark.parametrize(
+    ("table", "field"),
+    [("height = 0.80", "table.height"), ("size = [1.4, 0.9]", "table.size")],
+)
+def test_scene_table_must_match_the_table_model(tmp_path, table: str, field: str) -> None:
+    """One table: a scene may not draw a larger or higher table than the one blocks stand on."""
+    path = tmp_path / "big_table.toml"
     path.write_text(
-        'target = "a"\nplace = [0.0, -0.2]\n[table]\nheight = 0.80\n'
+        f'target = "a"\nplace = [0.0, -0.2]\n[table]\n{table}\n'
         '[[blocks]]\nname = "a"\nshape = "square"\nposition = [0.0, 0.0]\n'
     )
-    with pytest.raises(
-        SimulationError, match=r"table top at z = 0.8 m but models/table.xml .* 0.7500"
-    ):
-        World.build(load_scene(path), with_robot=False)
+    with pytest.raises(SceneError, match=rf"{field}: .* differs from the table model"):
+        load_scene(path)
+
+
+def test_a_block_at_the_scene_table_edge_stands_on_the_physical_table(tmp_path) -> None:
+    """The scene's table is the collision table: a block allowed at its edge does not fall."""
+    from hand_sim.scene import DEFAULT_TABLE_SIZE, TABLE_EDGE_MARGIN
+
+    half = float(np.abs(paper_object("square").vertices[:, 0]).max())
+    edge = 0.5 * DEFAULT_TABLE_SIZE[0] - TABLE_EDGE_MARGIN - half - 1e-4
+    path = tmp_path / "edge.toml"
+    path.write_text(
+        'target = "a"\nplace = [0.0, -0.2]\n'
+        f'[[blocks]]\nname = "a"\nshape = "square"\nposition = [{edge}, 0.0]\n'
+    )
+    world = World.build(load_scene(path), with_robot=False)
+    world.step(round(1.0 / TIMESTEP))
+    pos, _ = world.block_pose("a")
+    assert pos[2] == pytest.approx(world.scene.table.height + 0.1, abs=1e-3)
+
+
+@pytest.mark.parametrize("side", [+1.0, -1.0])
+def test_touch_feels_the_pad_not_the_back_of_the_fingertip(side: float) -> None:
+    """A block face pressed 1 mm into the palmar side of a fingertip is felt by its touch sensor;
+    pressed into the back of the fingertip, the sensor reads 0 while the contact list
+    (hand_sim.contacts) still sees the force on the distal link."""
+    from hand_sim.contacts import robot_contacts
+
+    world = World.build(load_scene("single_square"))
+    world.set_arm_targets(np.zeros(5))
+    hand = np.zeros(16)
+    for f in range(len(robot.FINGERS)):
+        hand[4 * f + 1 : 4 * f + 4] = [1.5, 1.5, 1.2]
+    hand[1:4] = [math.pi / 2, 0.0, 0.0]  # the first finger points straight up
+    world.set_hand_targets(hand)
+    world.step(round(3.0 / TIMESTEP))
+    m, d = world.model, world.data
+    distal = m.body(robot.hand_name("ff_distal")).id
+    R = d.xmat[distal].reshape(3, 3)
+    palmar = R[:, 2]  # horizontal: the finger points up
+    pad_centre = d.xpos[distal] + 0.00875 * R[:, 1]
+    block = world.scene.blocks[0]
+    half = float(np.abs(block.polygon.vertices[:, 0]).max())  # the square's half width
+    centre = pad_centre + side * palmar * (0.0085 + half - 0.001)
+    centre[2] += 0.5 * block.height - 0.02  # the block's lowest 2 cm face the pad, above the palm
+    yaw = math.atan2(palmar[1], palmar[0])
+    world.set_block_pose(block.name, centre, [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+    contacts = robot_contacts(world, world.block_body_id(block.name))
+    on_ff_distal = [c for c in contacts if c.finger == "ff" and c.link == "distal"]
+    assert on_ff_distal and max(c.normal_force for c in on_ff_distal) > 0.01
+    if side > 0:
+        assert world.touch()[0] == pytest.approx(sum(c.normal_force for c in on_ff_distal))
+    else:
+        assert world.touch()[0] == 0.0
+
+
+def test_wrist_sensor_weighs_the_hand_and_what_it_holds() -> None:
+    world = World.build(load_scene("single_square"))
+    world.step(round(1.0 / TIMESTEP))
+    force, _ = world.wrist_wrench()
+    m = world.model
+    hand = [b for b in range(m.nbody) if m.body(b).name.startswith(robot.HAND_PREFIX)]
+    hand_weight = float(m.body_mass[hand].sum()) * -m.opt.gravity[2]
+    np.testing.assert_allclose(force, [0.0, 0.0, hand_weight], atol=0.01 * hand_weight)

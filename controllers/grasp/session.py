@@ -1,0 +1,147 @@
+"""One grasp controller run on one polygon, a step at a time (section 5.2, "Wrench Closure").
+
+:func:`controllers.grasp.trials.run_trials` runs many trials to convergence at once; a robot needs
+the opposite: one grasp, whose virtual contacts it can inspect after every step (are they still
+reachable by the hand?), pause while the arm changes posture, and resume. A
+:class:`GraspSynthesis` does that with the same controller step as the trials
+(``theta <- theta - gain * gradient`` of a :class:`~controllers.grasp.composition.Composer`,
+the same convergence test and step limit, section 3.6.2), so a synthesis run to the end gives the
+same contacts as ``run_trials`` from the same initial contacts and generator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.grasp.composition import Composer
+from controllers.grasp.errors import GraspError
+from controllers.grasp.polygon import Polygon, wrap_angle
+from controllers.grasp.score import GraspScore, grasp_score
+from controllers.grasp.trials import (
+    CONVERGENCE_STEP,
+    GAIN,
+    MAX_STEPS,
+    PolygonBatch,
+    control_state,
+)
+
+
+@dataclass(frozen=True)
+class SynthesisStep:
+    """What one controller step did. Angles in radians (contact coordinate theta, Appendix B)."""
+
+    step: int  #: 1 for the first step
+    theta: NDArray[np.float64]  #: (n,) contacts after the step
+    eps_fc: float  #: Eq. 5 before the step
+    eps_mc: float  #: Eq. 10 before the step
+    predicted_failure: bool | None  #: the F/S predictor's verdict before the step (PI only)
+    moved: float  #: largest contact displacement of the step (rad)
+
+
+class GraspSynthesis:
+    """A composite grasp controller acting on ``polygon`` from contacts ``theta_initial``.
+
+    ``composer`` is any :class:`Composer` (``kb``, ``ql``, ``pi``); ``rng`` feeds its exploration
+    or pre-image noise. Call :meth:`step` until :attr:`done`; :attr:`converged` tells whether the
+    contacts stopped moving (no contact moved more than 0.0005 rad) before the step limit.
+    """
+
+    def __init__(
+        self,
+        polygon: Polygon,
+        composer: Composer,
+        theta_initial: ArrayLike,
+        rng: np.random.Generator,
+        *,
+        gain: float = GAIN,
+        max_steps: int = MAX_STEPS,
+        task: ArrayLike | None = None,
+    ) -> None:
+        theta = np.asarray(theta_initial, dtype=float).reshape(1, -1)
+        if theta.shape[1] < 2 or not np.all(np.isfinite(theta)):
+            raise GraspError(
+                f"need at least 2 finite initial contact angles, got {theta_initial!r}"
+            )
+        if not (np.isfinite(gain) and gain > 0):
+            raise GraspError(f"gain must be a positive number, got {gain}")
+        if max_steps < 1:
+            raise GraspError(f"max_steps must be >= 1, got {max_steps}")
+        self.polygon = polygon
+        self.composer = composer
+        self.rng = rng
+        self.gain = float(gain)
+        self.max_steps = int(max_steps)
+        self.task = task
+        self._batch = PolygonBatch.of([polygon])
+        self._index = np.zeros(1, dtype=np.int64)
+        self._theta = wrap_angle(theta)
+        self.steps = 0
+        self.converged = False
+        self.composer.begin(1, rng)
+        self._state = control_state(self._batch, self._index, self._theta, 0, self._active(), task)
+
+    def _active(self) -> NDArray[np.bool_]:
+        return np.array([not self.done])
+
+    @property
+    def done(self) -> bool:
+        """The controller converged or used up its steps."""
+        return self.converged or self.steps >= self.max_steps
+
+    @property
+    def theta(self) -> NDArray[np.float64]:
+        """(n,) current contact coordinates (rad)."""
+        return self._theta[0].copy()
+
+    @property
+    def eps_fc(self) -> float:
+        return float(self._state.eps_fc[0])
+
+    @property
+    def eps_mc(self) -> float:
+        return float(self._state.eps_mc[0])
+
+    def predicts_failure(self) -> bool | None:
+        """The composer's F/S predictor (section 4.2) on the current state; None without one."""
+        predictor = getattr(self.composer, "predictor", None)
+        if predictor is None:
+            return None
+        return bool(predictor.predicts_failure(self._state.eps_fc, self._state.eps_mc)[0])
+
+    def step(self) -> SynthesisStep:
+        """One control step (raises :class:`GraspError` once :attr:`done`)."""
+        if self.done:
+            raise GraspError("the grasp controller has already finished")
+        before = self._state
+        predicted = self.predicts_failure()
+        grad = self.composer.gradient(before, self.rng)
+        delta = -self.gain * grad
+        self._theta = wrap_angle(self._theta + delta)
+        moved = float(np.abs(delta).max())
+        self.steps += 1
+        self.converged = moved <= CONVERGENCE_STEP
+        self._state = control_state(
+            self._batch, self._index, self._theta, self.steps, self._active(), self.task
+        )
+        return SynthesisStep(
+            step=self.steps,
+            theta=self.theta,
+            eps_fc=float(before.eps_fc[0]),
+            eps_mc=float(before.eps_mc[0]),
+            predicted_failure=predicted,
+            moved=moved,
+        )
+
+    def score(self) -> GraspScore:
+        """S_G (Eq. 13) of the current contacts on the unit-moment polygon."""
+        frames = self._batch.locate(self._index, self._theta)
+        return grasp_score(frames.point[0], frames.normal[0], self.task)
+
+    def finish(self) -> GraspScore:
+        """Tell the composer the run ended (learning composers update on it) and score it."""
+        score = self.score()
+        self.composer.end(self._state, np.array([score.success]))
+        return score

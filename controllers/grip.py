@@ -1,0 +1,199 @@
+"""Grasp Object (section 5.2): "drives the fingers from their approach configuration ... to the
+virtual finger configuration synthesized by the grasp controller", then squeezes, holds and
+releases, all on the simulated hand's position servos and judged by its touch sensors.
+
+Each finger moves on its own line in joint space, from a pre-contact posture (fingertip
+:data:`PRE_CONTACT` outside its contact, pad facing it) through the contact to a posture
+:data:`controllers.hand_reach.SQUEEZE_REACH` inside the surface: finger f's servo targets are
+``q_pre + s_f (q_in - q_pre)`` with its own progress ``s_f``. Closing advances every ``s_f`` until
+that finger's pad feels the block (the touch guard: a finger that touches stops, so the first
+finger does not shove the block before the others arrive). Squeezing then regulates each finger's
+``s_f`` so that its touch force follows its share of the grip force: the normal forces of the S_G
+linear programme (Eq. 13) scaled to a mean of ``grip_force``, so the squeeze itself balances. The
+same regulation keeps the grip while the arm lifts and carries the block. Releasing moves every
+fingertip back out along its contact normal: no finger drags the block sideways.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.errors import ReachError
+from controllers.hand_reach import SQUEEZE_REACH, grip_targets
+from controllers.posture import HandIndices, solve_posture
+from hand_sim import robot
+from hand_sim.world import World
+
+#: Distance (m) of each fingertip outside its contact before closing, and after releasing.
+PRE_CONTACT = 0.012
+#: Control period (s) of the grip primitives.
+CONTROL_PERIOD = 0.02
+#: Closing speed: progress per second along the pre-contact-to-inside line (1 = the whole line;
+#: PRE_CONTACT + SQUEEZE_REACH = 18 mm, so about 18 mm/s at the fingertip).
+CLOSE_RATE = 1.0
+#: A pad "feels" the block above this normal force (N).
+TOUCH_THRESHOLD = 0.05
+#: Closing gives up when a finger has gone this far past its line's end without touching.
+CLOSE_OVERRUN = 0.5
+#: Grip force: mean normal force per finger (N) and the regulation gain (progress per N per s).
+GRIP_FORCE = 6.0
+FORCE_GAIN = 0.5
+#: Largest progress of the squeeze (beyond the inside posture, by extrapolation).
+MAX_PROGRESS = 2.0
+#: The squeeze has settled when every finger's force is within this fraction of its target.
+FORCE_TOLERANCE = 0.2
+#: Time (s) allowed to close and to squeeze.
+CLOSE_TIME = 3.0
+SQUEEZE_TIME = 2.0
+#: Time (s) to open the hand at release.
+RELEASE_TIME = 0.6
+
+
+def _finger_slices() -> list[slice]:
+    n = robot.JOINTS_PER_FINGER
+    return [slice(n * f, n * (f + 1)) for f in range(len(robot.FINGERS))]
+
+
+@dataclass
+class Grip:
+    """The fingers' lines in joint space and their progress; see the module docstring."""
+
+    q_pre: NDArray[np.float64]  #: (16,) pre-contact posture
+    q_in: NDArray[np.float64]  #: (16,) posture SQUEEZE_REACH inside the contacts
+    forces: NDArray[np.float64]  #: (4,) target normal force per finger (N)
+    progress: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
+    touched: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(4, dtype=bool))
+
+    def targets(self) -> NDArray[np.float64]:
+        """(16,) hand servo targets for the current progress."""
+        q = self.q_pre.copy()
+        for f, sl in enumerate(_finger_slices()):
+            q[sl] = self.q_pre[sl] + self.progress[f] * (self.q_in[sl] - self.q_pre[sl])
+        return q
+
+    def regulate(self, world: World, dt: float) -> None:
+        """Hold the fingers' servo targets (the grip is a stiffness: the block settles where the
+        fingers' forces and friction balance)."""
+        world.set_hand_targets(self.targets())
+
+
+def plan_grip(
+    world: World,
+    points: ArrayLike,
+    normals: ArrayLike,
+    force_shares: ArrayLike,
+    *,
+    grip_force: float = GRIP_FORCE,
+    model: mujoco.MjModel | None = None,
+) -> Grip:
+    """The two postures of each finger for contacts ``points`` (4, 3) with outward ``normals``
+    (finger order ff, mf, rf, th), arm held where it is now; ``force_shares`` (4,) are the
+    relative normal forces (e.g. the S_G LP's), scaled to a mean of ``grip_force`` N."""
+    p = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    shares = np.asarray(force_shares, dtype=float)
+    if shares.shape != (4,) or not np.all(np.isfinite(shares)) or shares.min() <= 0:
+        raise ReachError(f"force shares must be 4 positive numbers, got {force_shares!r}")
+    if not grip_force > 0:
+        raise ReachError(f"grip force must be positive, got {grip_force}")
+    inside, inside_pads = grip_targets(p, n, SQUEEZE_REACH)
+    q_in = solve_posture(
+        world, inside, optimize=False, joints="hand", model=model, pad_centres=inside_pads
+    ).hand_q
+    pre, pre_pads = grip_targets(p, n, -PRE_CONTACT)
+    data_q = world.data.qpos.copy()
+    data_q[HandIndices.of(world.model).finger_qpos.ravel()] = q_in
+    q_pre = solve_posture(
+        world, pre, optimize=False, joints="hand", model=model, pad_centres=pre_pads, qpos=data_q
+    ).hand_q
+    return Grip(q_pre, q_in, grip_force * shares / shares.mean())
+
+
+def move_hand(world: World, q: ArrayLike, duration: float) -> None:
+    """Move the hand's servo targets to ``q`` (16,) along a smooth (cosine) profile."""
+    q0 = world.hand_targets()
+    q1 = np.asarray(q, dtype=float)
+    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    n = max(1, round(duration / CONTROL_PERIOD))
+    for k in range(1, n + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        world.set_hand_targets(q0 + s * (q1 - q0))
+        world.step(steps)
+
+
+@dataclass(frozen=True)
+class CloseResult:
+    """Outcome of :func:`close`: ``touched`` per finger, in order ff, mf, rf, th."""
+
+    all_touched: bool
+    touched: tuple[bool, ...]
+    seconds: float
+    touch: NDArray[np.float64]  #: (4,) N at the end
+
+
+def close(world: World, grip: Grip, *, max_time: float = CLOSE_TIME) -> CloseResult:
+    """Drive every finger from its pre-contact posture towards the block; a finger stops where its
+    pad first feels the block (touch guard). Ends when all four touch or one has overrun."""
+    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    t0 = world.time
+    rate = CLOSE_RATE * CONTROL_PERIOD
+    while world.time - t0 < max_time:
+        grip.touched |= world.touch() > TOUCH_THRESHOLD
+        if grip.touched.all() or grip.progress.max() > 1.0 + CLOSE_OVERRUN:
+            break
+        grip.progress = np.where(grip.touched, grip.progress, grip.progress + rate)
+        world.set_hand_targets(grip.targets())
+        world.step(steps)
+    return CloseResult(
+        bool(grip.touched.all()),
+        tuple(bool(t) for t in grip.touched),
+        world.time - t0,
+        world.touch(),
+    )
+
+
+@dataclass(frozen=True)
+class SqueezeResult:
+    """Outcome of :func:`squeeze`: the forces reached against their targets (N)."""
+
+    settled: bool
+    touch: NDArray[np.float64]
+    target: NDArray[np.float64]
+    seconds: float
+
+
+def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> SqueezeResult:
+    """Regulate every finger's force to its target until all are within FORCE_TOLERANCE."""
+    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    t0 = world.time
+    settled_for = 0
+    while world.time - t0 < max_time:
+        error = grip.forces.mean() - world.touch().mean()
+        grip.progress = np.clip(
+            grip.progress + FORCE_GAIN * error * CONTROL_PERIOD, 0.0, MAX_PROGRESS
+        )
+        world.set_hand_targets(grip.targets())
+        world.step(steps)
+        ok = abs(world.touch().mean() - grip.forces.mean()) <= FORCE_TOLERANCE * grip.forces.mean()
+        settled_for = settled_for + 1 if ok else 0
+        if settled_for >= 5:
+            break
+    return SqueezeResult(settled_for >= 5, world.touch(), grip.forces.copy(), world.time - t0)
+
+
+def release(world: World, grip: Grip, *, duration: float = RELEASE_TIME) -> NDArray[np.float64]:
+    """Open the hand: every finger back along its own line to its pre-contact posture (each
+    fingertip moves out along its contact normal). Returns the touch forces (4,) afterwards."""
+    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    start = grip.progress.copy()
+    n = max(1, round(duration / CONTROL_PERIOD))
+    for k in range(1, n + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        grip.progress = start * (1.0 - s)
+        world.set_hand_targets(grip.targets())
+        world.step(steps)
+    return world.touch()

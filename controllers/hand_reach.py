@@ -1,0 +1,279 @@
+"""Can the hand take these contacts? The reachability criterion of section 5.2 ("Wrench Closure":
+"the reachability criterion was extended to mark as unreachable configurations in which finger
+links penetrates the object") and the rule that assigns fingers to contacts.
+
+The grasp controller moves virtual contacts on a polygon and knows nothing of fingers. Before a
+set of contacts is accepted, :func:`check_reach` asks, in this order:
+1. do the pads fit: no two contacts closer than :data:`MIN_PAD_SPACING` (two 8.5 mm pads side by
+   side, plus a margin);
+2. can each fingertip get there: hand inverse kinematics (mink, arm held) puts every fingertip
+   site within :data:`CONTACT_TOLERANCE` of its contact point;
+3. with the pad, not the side or back of the fingertip: the pad normal within
+   :data:`MAX_PAD_ANGLE` of the face's inward normal;
+4. without a finger link inside the block: no link deeper than :data:`MAX_LINK_PENETRATION` in
+   the perceived prism.
+The first failure is the reason given. The block is the perceived one throughout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import linear_sum_assignment
+
+from controllers.posture import HandIndices, solve_posture
+from controllers.reach import ReachTarget
+from hand_sim import robot
+from hand_sim.world import World
+
+#: Smallest distance (m) between two contact points: two pads of radius 8.5 mm side by side on a
+#: face need 17 mm between their centres; the rest is room for the finger links beside them.
+MIN_PAD_SPACING = 0.021
+#: A fingertip reaches its contact when its tip site ends this close (m) to the contact point.
+CONTACT_TOLERANCE = 0.002
+#: Largest angle (rad) between a fingertip's pad normal and the face's inward normal.
+MAX_PAD_ANGLE = np.deg2rad(65.0)
+#: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
+MAX_LINK_PENETRATION = 0.0015
+#: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
+#: towards the tip (+y) (models/hand.xml).
+PAD_NORMAL_LOCAL = np.array([0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)])
+#: Points sampled along each finger capsule's axis for the penetration test.
+POINTS_PER_LINK = 7
+#: Hand IK iterations of the reachability check.
+IK_ITERATIONS = 250
+#: The fingers must reach this far (m) into the block past each contact point: a squeeze is a
+#: position servo target inside the surface, so a finger that can only just touch cannot grip.
+SQUEEZE_REACH = 0.006
+
+
+@dataclass(frozen=True, eq=False)
+class PerceivedPrism:
+    """The block as perceived: its footprint polygon turned by ``yaw``, centred at
+    ``position_xy``, standing from ``bottom`` to ``top`` (m, world z)."""
+
+    footprint: NDArray[np.float64]  #: (k, 2) world vertices, CCW
+    bottom: float
+    top: float
+
+    @classmethod
+    def of(cls, target: ReachTarget, bottom: float) -> PerceivedPrism:
+        return cls(target.footprint(), float(bottom), float(target.top_z))
+
+    def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Exact signed distance (m) of points (..., 3) to the prism; negative inside."""
+        p = np.asarray(points, dtype=float)
+        xy = p[..., :2]
+        a = self.footprint
+        b = np.roll(a, -1, axis=0)
+        ab = b - a
+        t = np.clip(
+            np.einsum("...kd,kd->...k", xy[..., None, :] - a, ab) / np.einsum("kd,kd->k", ab, ab),
+            0.0,
+            1.0,
+        )
+        closest = a + t[..., None] * ab
+        edge_dist = np.linalg.norm(xy[..., None, :] - closest, axis=-1).min(axis=-1)
+        cross = ab[:, 0] * (xy[..., None, 1] - a[:, 1]) - ab[:, 1] * (xy[..., None, 0] - a[:, 0])
+        inside_xy = np.all(cross >= 0.0, axis=-1)
+        d_xy = np.where(inside_xy, -edge_dist, edge_dist)
+        d_z = np.maximum(self.bottom - p[..., 2], p[..., 2] - self.top)
+        outside = np.hypot(np.maximum(d_xy, 0.0), np.maximum(d_z, 0.0))
+        return np.where((d_xy > 0) | (d_z > 0), outside, np.maximum(d_xy, d_z))
+
+
+def assign_fingers(tips: ArrayLike, points: ArrayLike) -> tuple[int, ...]:
+    """The explicit finger-to-contact rule: the assignment of the four fingertips (ff, mf, rf,
+    th; rows of ``tips`` (4, 3)) to the contacts (rows of ``points`` (4, 3)) that minimises the
+    sum of squared reach distances (an optimal assignment, Hungarian method). Returns, per finger,
+    the index of its contact. The controller's own order of the contacts plays no part."""
+    t = np.asarray(tips, dtype=float)
+    p = np.asarray(points, dtype=float)
+    if t.shape != p.shape or t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"tips and points must both be (n, 3), got {t.shape} and {p.shape}")
+    cost = ((t[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1)
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty(len(t), dtype=int)
+    out[rows] = cols
+    return tuple(int(c) for c in out)
+
+
+@dataclass(frozen=True, eq=False)
+class HandReach:
+    """Verdict of :func:`check_reach` for contacts in finger order (ff, mf, rf, th)."""
+
+    reachable: bool
+    reason: str  #: "" when reachable, else what stands in the way, naming the finger(s)
+    hand_q: NDArray[np.float64]  #: (16,) the hand IK solution (arm held)
+    tip_error: NDArray[np.float64]  #: (4,) m
+    pad_angle: NDArray[np.float64]  #: (4,) rad between pad normal and inward face normal
+    penetration: float  #: deepest finger link inside the perceived block (m, >= 0)
+    min_spacing: float  #: closest pair of contact points (m)
+
+
+def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:
+    """(finger, geom id) of every colliding capsule of the fingers."""
+    out = []
+    for g in range(model.ngeom):
+        if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_CAPSULE:
+            continue
+        if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        name = model.body(model.geom_bodyid[g]).name
+        for finger in robot.FINGERS:
+            if name.startswith(robot.HAND_PREFIX + finger + "_"):
+                out.append((finger, g))
+    return out
+
+
+def link_penetration(
+    model: mujoco.MjModel, data: mujoco.MjData, prism: PerceivedPrism
+) -> dict[str, float]:
+    """Deepest penetration (m, >= 0) of each finger's proximal and middle links into ``prism``
+    for the kinematics in ``data`` (capsule axes sampled at :data:`POINTS_PER_LINK` points; the
+    distal pads are meant to press into it)."""
+    frac = np.linspace(-1.0, 1.0, POINTS_PER_LINK)
+    out = dict.fromkeys(robot.FINGERS, 0.0)
+    for finger, g in _finger_capsules(model):
+        if model.body(model.geom_bodyid[g]).name.endswith("_distal"):
+            continue  # the pad presses into the block by design
+        axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+        radius, half = model.geom_size[g, 0], model.geom_size[g, 1]
+        pts = data.geom_xpos[g] + frac[:, None] * half * axis
+        depth = float((radius - prism.signed_distance(pts)).max())
+        out[finger] = max(out[finger], depth)
+    return out
+
+
+def pad_normals(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world pad normals (out of the pad) of the fingertips, order ff, mf, rf, th."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3) @ PAD_NORMAL_LOCAL for b in bodies])
+
+
+def grip_targets(
+    points: ArrayLike, normals: ArrayLike, depth: float = SQUEEZE_REACH
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Fingertip targets ``depth`` inside the surface at each contact and the matching pad-centre
+    targets (one pad radius out along the normal from the fingertip target), (4, 3) each."""
+    p, n = np.asarray(points, dtype=float), np.asarray(normals, dtype=float)
+    tips = p - depth * n
+    return tips, tips + robot.PAD_RADIUS * n
+
+
+def check_reach(
+    world: World,
+    prism: PerceivedPrism,
+    points: ArrayLike,
+    normals: ArrayLike,
+    *,
+    qpos: ArrayLike | None = None,
+    model: mujoco.MjModel | None = None,
+) -> HandReach:
+    """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
+    ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
+    The fingertips must reach :data:`SQUEEZE_REACH` past each contact, pads facing it."""
+    model = world.model if model is None else model
+    p = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    start = np.asarray(world.data.qpos if qpos is None else qpos, dtype=float).copy()
+    gaps = np.linalg.norm(p[:, None] - p[None, :], axis=-1)
+    gaps[np.diag_indices(len(p))] = np.inf
+    spacing = float(gaps.min())
+    tips, centres = grip_targets(p, n)
+    sol = solve_posture(
+        world,
+        tips,
+        optimize=False,
+        joints="hand",
+        tolerance=CONTACT_TOLERANCE,
+        reach_iterations=IK_ITERATIONS,
+        qpos=start,
+        model=model,
+        pad_centres=centres,
+    )
+    data = mujoco.MjData(model)
+    data.qpos[:] = start
+    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = sol.hand_q
+    mujoco.mj_kinematics(model, data)
+    cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
+    angle = np.arccos(np.clip(cosines, -1.0, 1.0))
+    depth = link_penetration(model, data, prism)
+    deepest = max(depth.values())
+    reason = ""
+    if spacing < MIN_PAD_SPACING:
+        i, j = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
+        reason = (
+            f"{robot.FINGERS[i]} and {robot.FINGERS[j]} contacts are {spacing * 1000:.0f} mm "
+            f"apart (two pads need {MIN_PAD_SPACING * 1000:.0f} mm)"
+        )
+    elif not sol.reachable:
+        worst = int(np.argmax(sol.tip_error))
+        reason = (
+            f"{', '.join(sol.unreachable)} cannot reach (worst: {robot.FINGERS[worst]} "
+            f"{sol.tip_error[worst] * 1000:.0f} mm short)"
+        )
+    elif angle.max() > MAX_PAD_ANGLE:
+        worst = int(np.argmax(angle))
+        reason = (
+            f"{robot.FINGERS[worst]} would touch with the side of its fingertip "
+            f"({np.degrees(angle[worst]):.0f} deg from the pad)"
+        )
+    elif deepest > MAX_LINK_PENETRATION:
+        finger = max(depth, key=depth.__getitem__)
+        reason = f"{finger} links would penetrate the block by {deepest * 1000:.1f} mm"
+    return HandReach(
+        reachable=not reason,
+        reason=reason,
+        hand_q=sol.hand_q,
+        tip_error=sol.tip_error,
+        pad_angle=angle,
+        penetration=max(deepest, 0.0),
+        min_spacing=spacing,
+    )
+
+
+#: Contacts stay this far (m) below the block's top and above the table.
+TOP_MARGIN = 0.012
+BOTTOM_MARGIN = 0.02
+
+
+@dataclass(frozen=True, eq=False)
+class FingerContacts:
+    """Contacts given to fingers: row f is finger f's (ff, mf, rf, th) contact."""
+
+    points: NDArray[np.float64]  #: (4, 3) world contact points on the side faces
+    normals: NDArray[np.float64]  #: (4, 3) outward face normals (horizontal)
+    theta: NDArray[np.float64]  #: (4,) contact coordinates on the perceived polygon
+    contact_of_finger: tuple[int, ...]  #: index of each finger's contact in the controller's set
+
+
+def finger_contacts(
+    target: ReachTarget, theta: ArrayLike, tips: ArrayLike, table_z: float
+) -> FingerContacts:
+    """The controller's contacts ``theta`` (polar angles on the perceived polygon) given to the
+    fingers by :func:`assign_fingers`. Contacts are planar (section 5: the grasp acts on the
+    prism's horizontal cross-section); each lies at the height its fingertip has now, kept
+    between the table and the block's top by the margins above."""
+    th = np.asarray(theta, dtype=float)
+    tips = np.asarray(tips, dtype=float)
+    frames = target.polygon.locate(th)
+    c, s = np.cos(target.yaw), np.sin(target.yaw)
+    R = np.array([[c, -s], [s, c]])
+    xy = frames.point @ R.T + np.asarray(target.position_xy)
+    nxy = frames.normal @ R.T
+    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
+    # contact j as finger f would take it: at finger f's height
+    candidate = np.concatenate(
+        [np.broadcast_to(xy, (4, 4, 2)), z[:, None, None] * np.ones((4, 4, 1))], axis=2
+    )
+    cost = ((tips[:, None, :] - candidate) ** 2).sum(axis=-1)
+    rows, cols = linear_sum_assignment(cost)
+    order = np.empty(4, dtype=int)
+    order[rows] = cols
+    points = np.column_stack([xy[order], z])
+    normals = np.column_stack([nxy[order], np.zeros(4)])
+    return FingerContacts(points, normals, th[order], tuple(int(i) for i in order))

@@ -1,0 +1,217 @@
+"""Deliver (section 5.2): lift the grasped block, carry it along a harmonic path, lower it until the
+table takes its weight, and move the hand clear after the release.
+
+Every motion of the arm here is a sequence of servo targets from the arm's inverse kinematics
+(:class:`controllers.cspace.CollisionChecker`) along a smooth (cosine) time profile, and during a
+lift, carry or set-down the grip holds the fingers' servo targets (:class:`controllers.grip.Grip`).
+What happened is measured in the simulation, never read back from a target: the block's rise
+against the palm's (slip), the wrist force/torque sensor (the table taking the weight).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
+from controllers.grip import CONTROL_PERIOD, Grip
+from controllers.reach import _interpolate
+from hand_sim.world import World
+
+#: Lift: height (m) and duration (s); the block must rise with the palm within SLIP_TOLERANCE.
+LIFT_HEIGHT = 0.10
+LIFT_TIME = 1.5
+SLIP_TOLERANCE = 0.01
+#: Carrying: largest joint speed (rad/s).
+CARRY_SPEED = 0.5
+#: Set-down: lowering speed (m/s), the furthest it lowers (m) and the share of the block's weight
+#: the table must take (from the wrist sensor) before the hand lets go.
+LOWER_SPEED = 0.02
+MAX_LOWER = 0.08
+SUPPORTED_SHARE = 0.6
+#: After the set-down the hand may push the block into the table (the arm's servos lag): the palm
+#: rises in steps (m) until the push is below the tolerance (N), at most MAX_UNLOAD (m).
+UNLOAD_STEP = 0.0005
+UNLOAD_TOLERANCE = 0.3
+MAX_UNLOAD = 0.01
+#: Retreat: how far (m) the palm backs off along its approach axis, then rises, and the time each
+#: takes (s).
+RETREAT_BACK = 0.06
+RETREAT_UP = 0.08
+RETREAT_TIME = 1.0
+#: Settling time (s) after a motion.
+SETTLE_TIME = 0.3
+
+
+def _steps(world: World) -> int:
+    return max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+
+
+def _hold(world: World, grip: Grip | None, seconds: float) -> None:
+    for _ in range(max(0, round(seconds / CONTROL_PERIOD))):
+        if grip is not None:
+            grip.regulate(world, CONTROL_PERIOD)
+        world.step(_steps(world))
+
+
+def move_palm(
+    world: World,
+    checker: CollisionChecker,
+    offset: ArrayLike,
+    duration: float,
+    *,
+    grip: Grip | None = None,
+    stop: Callable[[World], bool] | None = None,
+) -> bool:
+    """Move the palm by ``offset`` (3,) m in a straight line, orientation kept, over ``duration``
+    s (cosine profile), regulating ``grip`` if given; stop early when ``stop(world)`` is true.
+    Returns whether the whole move was made. Raises :class:`ReachError` when the arm's inverse
+    kinematics cannot follow the line."""
+    d = np.asarray(offset, dtype=float)
+    # from the commanded posture: the servos sag under the hand's weight, and starting from the
+    # measured one would first move the arm by that sag
+    p0, R0 = checker.palm_pose(world.arm_targets())
+    n = max(1, round(duration / CONTROL_PERIOD))
+    seed = world.arm_targets()
+    for k in range(1, n + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        ik = checker.solve_ik(p0 + s * d, R0, seed)
+        if not ik.found:
+            raise ReachError(
+                f"the arm cannot move the palm {np.linalg.norm(d) * 100:.0f} cm along "
+                f"{np.round(d / max(np.linalg.norm(d), 1e-12), 2).tolist()} from here "
+                f"(IK error {ik.position_error * 1000:.1f} mm at {s:.0%})"
+            )
+        seed = ik.q
+        world.set_arm_targets(ik.q)
+        if grip is not None:
+            grip.regulate(world, CONTROL_PERIOD)
+        world.step(_steps(world))
+        if stop is not None and stop(world):
+            return False
+    return True
+
+
+@dataclass(frozen=True)
+class LiftResult:
+    """Rise (m) of the palm and of the block during :func:`lift`, and their difference."""
+
+    palm_rise: float
+    block_rise: float
+
+    @property
+    def slip(self) -> float:
+        """How much less the block rose than the palm (m)."""
+        return self.palm_rise - self.block_rise
+
+
+def lift(
+    world: World,
+    checker: CollisionChecker,
+    block: str,
+    grip: Grip,
+    *,
+    height: float = LIFT_HEIGHT,
+    duration: float = LIFT_TIME,
+) -> LiftResult:
+    """Lift the palm straight up by ``height`` while the grip holds the block (ramped, not a
+    step: a step command slipped the block by 2 cm), then hold still for a moment."""
+    if not 0.0 < height < 0.5:
+        raise ReachError(f"lift height must lie in (0, 0.5) m, got {height}")
+    b0 = world.block_pose(block)[0][2]
+    p0 = checker.palm_pose(world.arm_qpos())[0][2]
+    move_palm(world, checker, [0.0, 0.0, height], duration, grip=grip)
+    _hold(world, grip, SETTLE_TIME)
+    return LiftResult(
+        palm_rise=checker.palm_pose(world.arm_qpos())[0][2] - p0,
+        block_rise=world.block_pose(block)[0][2] - b0,
+    )
+
+
+def carry(
+    world: World,
+    path: ArrayLike,
+    grip: Grip,
+    *,
+    max_joint_speed: float = CARRY_SPEED,
+    on_period: Callable[[World], None] | None = None,
+) -> None:
+    """Drive the arm along ``path`` (k, 5) at ``max_joint_speed`` while the grip holds;
+    ``on_period(world)`` is called every control period (e.g. to watch the block)."""
+    dense = _interpolate(np.asarray(path, dtype=float), max_joint_speed * CONTROL_PERIOD)
+    for q in dense:
+        world.set_arm_targets(q)
+        grip.regulate(world, CONTROL_PERIOD)
+        world.step(_steps(world))
+        if on_period is not None:
+            on_period(world)
+    _hold(world, grip, SETTLE_TIME)
+
+
+def held_load(world: World, empty_hand_force: ArrayLike) -> float:
+    """The vertical load (N) the hand carries beyond its own weight: the wrist sensor's force now
+    minus ``empty_hand_force`` (3,), measured with the hand empty."""
+    force, _ = world.wrist_wrench()
+    return float(force[2] - np.asarray(empty_hand_force, dtype=float)[2])
+
+
+@dataclass(frozen=True)
+class SetDownResult:
+    """Outcome of :func:`lower_until_supported`."""
+
+    supported: bool  #: the table took at least SUPPORTED_SHARE of the block's weight
+    lowered: float  #: how far the palm went down (m)
+    load_before: float  #: N held before lowering
+    load_after: float  #: N held at the end
+
+
+def lower_until_supported(
+    world: World,
+    checker: CollisionChecker,
+    grip: Grip,
+    empty_hand_force: ArrayLike,
+    *,
+    max_lower: float = MAX_LOWER,
+    speed: float = LOWER_SPEED,
+) -> SetDownResult:
+    """Lower the palm until the wrist sensor shows the table carrying the block (the load held
+    falls below ``1 - SUPPORTED_SHARE`` of what it was), not to a height assumed in advance."""
+    _hold(world, grip, SETTLE_TIME)
+    before = held_load(world, empty_hand_force)
+    if before <= 0.0:
+        raise ReachError(f"the hand holds no load to set down (wrist sensor: {before:.2f} N)")
+    z0 = checker.palm_pose(world.arm_qpos())[0][2]
+
+    def supported(w: World) -> bool:
+        return held_load(w, empty_hand_force) < (1.0 - SUPPORTED_SHARE) * before
+
+    move_palm(world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported)
+    _hold(world, grip, SETTLE_TIME)
+    # the arm's servos lag behind the lowering: take back any push into the table
+    for _ in range(round(MAX_UNLOAD / UNLOAD_STEP)):
+        if held_load(world, empty_hand_force) > -UNLOAD_TOLERANCE:
+            break
+        move_palm(world, checker, [0.0, 0.0, UNLOAD_STEP], CONTROL_PERIOD * 3, grip=grip)
+    _hold(world, grip, SETTLE_TIME)
+    after = held_load(world, empty_hand_force)
+    return SetDownResult(
+        supported=after < (1.0 - SUPPORTED_SHARE) * before,
+        lowered=z0 - checker.palm_pose(world.arm_qpos())[0][2],
+        load_before=before,
+        load_after=after,
+    )
+
+
+def retreat(world: World, checker: CollisionChecker) -> NDArray[np.float64]:
+    """Back the palm off along its approach axis, then raise it; returns the palm position."""
+    q = world.arm_qpos()
+    _, R = checker.palm_pose(q)
+    approach = R[:, 2]
+    move_palm(world, checker, -RETREAT_BACK * approach, RETREAT_TIME)
+    move_palm(world, checker, [0.0, 0.0, RETREAT_UP], RETREAT_TIME)
+    _hold(world, None, SETTLE_TIME)
+    return checker.palm_pose(world.arm_qpos())[0]
