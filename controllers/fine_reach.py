@@ -41,6 +41,8 @@ GOAL_STANDOFF = 0.001
 #: The fingertips are steered this far (m) outside their surface points along the normal, so
 #: that reaching touches the block without pushing it (the grasp controller squeezes later).
 TOUCH_STANDOFF = 0.001
+#: A fingertip stops when its pad feels more than this normal force (N): the touch guard.
+TOUCH_GUARD = 0.05
 #: Within this distance (m) of its target a fingertip moves straight at it.
 FINAL_APPROACH = 0.02
 #: Fingertip step (m) per control period, control period (s), IK iterations per period.
@@ -146,13 +148,19 @@ class FingertipField:
         return world_grad / norm
 
 
-def obstacle_grid(world: World, target: ReachTarget, spec: GridSpec) -> NDArray[np.bool_]:
-    """Free cells of the fingertip grid: outside every block grown by OBSTACLE_MARGIN (the blocks
-    as the world has them now) and above the table top plus the margin."""
+def obstacle_grid(
+    world: World, target: ReachTarget, spec: GridSpec, target_name: str | None = None
+) -> NDArray[np.bool_]:
+    """Free cells of the fingertip grid: outside every block grown by OBSTACLE_MARGIN and above
+    the table top plus the margin. Block ``target_name`` is ``target`` as perceived; the other
+    blocks are where the world has them now."""
     nodes = spec.node_configs()
     free = nodes[:, 2] > world.scene.table.height + OBSTACLE_MARGIN
     for block in world.scene.blocks:
-        other = ReachTarget.from_world(world, block.name)
+        if block.name == target_name:
+            other = target
+        else:
+            other = ReachTarget.from_world(world, block.name)
         verts, normals = _world_edges(other)
         signed = (nodes[:, None, :2] - verts[None]) @ normals.T  # (N, k, k)
         edge_dist = np.einsum("nkk->nk", signed)
@@ -169,9 +177,13 @@ def fingertip_fields(
     *,
     cell: float = FIELD_CELL,
     include: ArrayLike | None = None,
+    target_name: str | None = None,
+    standoff: float = TOUCH_STANDOFF,
 ) -> list[FingertipField]:
     """One harmonic field per fingertip over a grid around the target block (and around the
-    points ``include`` (n, 3), e.g. the fingertips now, plus FIELD_MARGIN)."""
+    points ``include`` (n, 3), e.g. the fingertips now, plus FIELD_MARGIN). Each fingertip is
+    steered ``standoff`` m outside its surface point; block ``target_name`` is ``target`` as
+    perceived in the obstacle grid."""
     verts, _ = _world_edges(target)
     lo = np.array([*(verts.min(axis=0) - FIELD_MARGIN_XY), target.top_z - FIELD_BELOW])
     hi = np.array([*(verts.max(axis=0) + FIELD_MARGIN_XY), target.top_z + FIELD_ABOVE])
@@ -181,17 +193,17 @@ def fingertip_fields(
     lo[2] = max(lo[2], world.scene.table.height - FIELD_MARGIN)
     shape = tuple(int(np.ceil((h - lo_) / cell)) + 1 for lo_, h in zip(lo, hi, strict=True))
     spec = GridSpec(tuple(lo), tuple(lo + (np.asarray(shape) - 1) * cell), shape)
-    free = obstacle_grid(world, target, spec)
+    free = obstacle_grid(world, target, spec, target_name)
     nodes = spec.node_configs().reshape(*spec.shape, 3)
     out = []
     for p, n in zip(targets.points, targets.normals, strict=True):
-        goal_point = p + n * (OBSTACLE_MARGIN + GOAL_STANDOFF + cell)
+        goal_point = p + n * (max(OBSTACLE_MARGIN, standoff) + GOAL_STANDOFF + cell)
         goal = (np.linalg.norm(nodes - goal_point, axis=-1) <= cell) & free
         if not goal.any():
             raise ReachError(
                 f"fingertip target {p.round(4).tolist()} has no free grid cell near it"
             )
-        out.append(FingertipField(spec, solve_harmonic(free, goal), p + TOUCH_STANDOFF * n))
+        out.append(FingertipField(spec, solve_harmonic(free, goal), p + standoff * n))
     return out
 
 
@@ -206,6 +218,7 @@ class FineReachResult:
     periods: int  #: control periods run
     max_penetration: float  #: deepest hand-block contact seen (m, >= 0)
     other_contacts: tuple[tuple[str, str], ...]  #: robot contacts with anything but the target
+    stopped_on_touch: tuple[str, ...] = ()  #: fingers the touch guard stopped before their target
 
 
 def _hand_contacts(world: World, target_body: int) -> tuple[float, set[tuple[str, str]]]:
@@ -231,11 +244,16 @@ def fine_reach(
     seen: ReachTarget | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     max_time: float = MAX_TIME,
+    standoff: float = TOUCH_STANDOFF,
 ) -> FineReachResult:
     """Bring the fingertips to ``targets`` on block ``target_name`` (default: the fingertips'
     current positions projected on its side faces, :func:`project_to_surface`), following each
     fingertip's harmonic field, in the simulation. ``seen`` is the block as
-    perceived (e.g. :meth:`ReachTarget.from_object_model`); default: where the physics has it."""
+    perceived (e.g. :meth:`ReachTarget.from_object_model`); default: where the physics has it.
+
+    Each fingertip is steered ``standoff`` m outside its surface point. Touch guard: a fingertip
+    whose pad feels anything (:meth:`World.touch` above :data:`TOUCH_GUARD`) stops where it is,
+    so a finger arriving early does not push the block before the others arrive."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")
     target = ReachTarget.from_world(world, target_name) if seen is None else seen
@@ -243,14 +261,19 @@ def fine_reach(
     tips = world.fingertip_positions()
     if targets is None:
         targets = project_to_surface(target, tips, table_z=world.scene.table.height)
-    fields = fingertip_fields(world, target, targets, include=tips)
+    fields = fingertip_fields(
+        world, target, targets, include=tips, target_name=target_name, standoff=standoff
+    )
+    goals = targets.points + standoff * targets.normals
+    stopped = np.zeros(len(tips), dtype=bool)
     steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
     depth, others = 0.0, set()
     periods = 0
     for _ in range(round(max_time / CONTROL_PERIOD)):
         tips = world.fingertip_positions()
-        err = np.linalg.norm(tips - targets.points, axis=1)
-        if err.max() < 0.5 * tolerance:
+        stopped |= world.touch() > TOUCH_GUARD
+        err = np.linalg.norm(tips - goals, axis=1)
+        if np.all((err < 0.5 * tolerance) | stopped):
             break
         periods += 1
         nxt = np.empty_like(tips)
@@ -260,7 +283,7 @@ def fine_reach(
             direction = None if dist < FINAL_APPROACH else ff.direction(tip)
             if direction is None:
                 direction = to_goal / max(dist, 1e-12)
-            nxt[f] = tip + direction * min(TIP_STEP, dist)
+            nxt[f] = tip if stopped[f] else tip + direction * min(TIP_STEP, dist)
         sol = solve_posture(world, nxt, optimize=False, reach_iterations=IK_ITERATIONS)
         # position servos sag under load: add their steady-state error to the new targets
         world.set_arm_targets(sol.arm_q + 0.5 * (world.arm_targets() - world.arm_qpos()))
@@ -268,12 +291,13 @@ def fine_reach(
         world.step(steps)
         d, o = _hand_contacts(world, target_body)
         depth, others = max(depth, d), others | o
-    err = np.linalg.norm(world.fingertip_positions() - targets.points, axis=1)
+    err = np.linalg.norm(world.fingertip_positions() - goals, axis=1)
     return FineReachResult(
-        reached=bool(err.max() < tolerance),
+        reached=bool(np.all((err < tolerance) | stopped)),
         tip_error=err,
         targets=targets,
         periods=periods,
         max_penetration=depth,
         other_contacts=tuple(sorted(others)),
+        stopped_on_touch=tuple(f for f, s in zip(robot.FINGERS, stopped, strict=True) if s),
     )

@@ -65,6 +65,8 @@ class Grip:
     q_pre: NDArray[np.float64]  #: (16,) pre-contact posture
     q_in: NDArray[np.float64]  #: (16,) posture SQUEEZE_REACH inside the contacts
     forces: NDArray[np.float64]  #: (4,) target normal force per finger (N)
+    pre_error: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))  #: IK, m
+    in_error: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))  #: IK, m
     progress: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     touched: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(4, dtype=bool))
 
@@ -101,16 +103,22 @@ def plan_grip(
     if not grip_force > 0:
         raise ReachError(f"grip force must be positive, got {grip_force}")
     inside, inside_pads = grip_targets(p, n, SQUEEZE_REACH)
-    q_in = solve_posture(
+    sol_in = solve_posture(
         world, inside, optimize=False, joints="hand", model=model, pad_centres=inside_pads
-    ).hand_q
+    )
     pre, pre_pads = grip_targets(p, n, -PRE_CONTACT)
     data_q = world.data.qpos.copy()
-    data_q[HandIndices.of(world.model).finger_qpos.ravel()] = q_in
-    q_pre = solve_posture(
+    data_q[HandIndices.of(world.model).finger_qpos.ravel()] = sol_in.hand_q
+    sol_pre = solve_posture(
         world, pre, optimize=False, joints="hand", model=model, pad_centres=pre_pads, qpos=data_q
-    ).hand_q
-    return Grip(q_pre, q_in, grip_force * shares / shares.mean())
+    )
+    return Grip(
+        sol_pre.hand_q,
+        sol_in.hand_q,
+        grip_force * shares / shares.mean(),
+        pre_error=sol_pre.tip_error,
+        in_error=sol_in.tip_error,
+    )
 
 
 def move_hand(world: World, q: ArrayLike, duration: float) -> None:

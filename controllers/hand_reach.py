@@ -17,6 +17,7 @@ The first failure is the reason given. The block is the perceived one throughout
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import mujoco
@@ -172,10 +173,13 @@ def check_reach(
     *,
     qpos: ArrayLike | None = None,
     model: mujoco.MjModel | None = None,
+    check_spacing: bool = True,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
-    The fingertips must reach :data:`SQUEEZE_REACH` past each contact, pads facing it."""
+    The fingertips must reach :data:`SQUEEZE_REACH` past each contact, pads facing it.
+    ``check_spacing=False`` leaves out the pad-spacing test (no arm posture can change it: the
+    task cycle applies it to the controller's final contacts only)."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -204,7 +208,7 @@ def check_reach(
     depth = link_penetration(model, data, prism)
     deepest = max(depth.values())
     reason = ""
-    if spacing < MIN_PAD_SPACING:
+    if check_spacing and spacing < MIN_PAD_SPACING:
         i, j = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
         reason = (
             f"{robot.FINGERS[i]} and {robot.FINGERS[j]} contacts are {spacing * 1000:.0f} mm "
@@ -251,21 +255,43 @@ class FingerContacts:
     contact_of_finger: tuple[int, ...]  #: index of each finger's contact in the controller's set
 
 
+def _contacts_for(
+    target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """World xy (n, 2), normals (n, 2) of contacts ``theta`` and the height each finger would
+    take them at (4,)."""
+    frames = target.polygon.locate(theta)
+    c, s = np.cos(target.yaw), np.sin(target.yaw)
+    R = np.array([[c, -s], [s, c]])
+    xy = frames.point @ R.T + np.asarray(target.position_xy)
+    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
+    return xy, frames.normal @ R.T, z
+
+
+def _given(
+    theta: NDArray[np.float64],
+    xy: NDArray[np.float64],
+    nxy: NDArray[np.float64],
+    z: NDArray[np.float64],
+    order: ArrayLike,
+) -> FingerContacts:
+    order = np.asarray(order, dtype=int)
+    points = np.column_stack([xy[order], z])
+    normals = np.column_stack([nxy[order], np.zeros(len(order))])
+    return FingerContacts(points, normals, theta[order], tuple(int(i) for i in order))
+
+
 def finger_contacts(
     target: ReachTarget, theta: ArrayLike, tips: ArrayLike, table_z: float
 ) -> FingerContacts:
     """The controller's contacts ``theta`` (polar angles on the perceived polygon) given to the
-    fingers by :func:`assign_fingers`. Contacts are planar (section 5: the grasp acts on the
-    prism's horizontal cross-section); each lies at the height its fingertip has now, kept
-    between the table and the block's top by the margins above."""
+    fingers by the optimal assignment on squared reach distance (:func:`assign_fingers`).
+    Contacts are planar (section 5: the grasp acts on the prism's horizontal cross-section);
+    each lies at the height its fingertip has now, kept between the table and the block's top
+    by the margins above."""
     th = np.asarray(theta, dtype=float)
     tips = np.asarray(tips, dtype=float)
-    frames = target.polygon.locate(th)
-    c, s = np.cos(target.yaw), np.sin(target.yaw)
-    R = np.array([[c, -s], [s, c]])
-    xy = frames.point @ R.T + np.asarray(target.position_xy)
-    nxy = frames.normal @ R.T
-    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
+    xy, nxy, z = _contacts_for(target, th, tips, table_z)
     # contact j as finger f would take it: at finger f's height
     candidate = np.concatenate(
         [np.broadcast_to(xy, (4, 4, 2)), z[:, None, None] * np.ones((4, 4, 1))], axis=2
@@ -274,6 +300,43 @@ def finger_contacts(
     rows, cols = linear_sum_assignment(cost)
     order = np.empty(4, dtype=int)
     order[rows] = cols
-    points = np.column_stack([xy[order], z])
-    normals = np.column_stack([nxy[order], np.zeros(4)])
-    return FingerContacts(points, normals, th[order], tuple(int(i) for i in order))
+    return _given(th, xy, nxy, z, order)
+
+
+#: Assignments :func:`reachable_contacts` tries, nearest first.
+ASSIGNMENTS_TRIED = 6
+
+
+def reachable_contacts(
+    world: World,
+    prism: PerceivedPrism,
+    target: ReachTarget,
+    theta: ArrayLike,
+    *,
+    model: mujoco.MjModel | None = None,
+    check_spacing: bool = True,
+    tries: int = ASSIGNMENTS_TRIED,
+) -> tuple[FingerContacts, HandReach]:
+    """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
+    to the four fingers, ranked by total squared reach distance from the fingertips (at each
+    fingertip's height), the first ``tries`` are checked with :func:`check_reach` and the first
+    the hand reaches is taken; when none is, the nearest one with its reason."""
+    th = np.asarray(theta, dtype=float)
+    tips = world.fingertip_positions()
+    table_z = prism.bottom
+    xy, nxy, z = _contacts_for(target, th, tips, table_z)
+    perms = np.array(list(itertools.permutations(range(len(th)))))
+    pts = np.concatenate([xy[perms], np.broadcast_to(z[None, :, None], (len(perms), 4, 1))], 2)
+    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
+    first: tuple[FingerContacts, HandReach] | None = None
+    for k in np.argsort(cost, kind="stable")[:tries]:
+        contacts = _given(th, xy, nxy, z, perms[k])
+        reach = check_reach(
+            world, prism, contacts.points, contacts.normals, model=model, check_spacing=check_spacing
+        )
+        if reach.reachable:
+            return contacts, reach
+        if first is None:
+            first = (contacts, reach)
+    assert first is not None
+    return first

@@ -414,15 +414,18 @@ def plan_coarse_reach(
     hand_q: ArrayLike = PRESHAPE,
     approaches: tuple[str, ...] = APPROACHES,
     clearance: float = DEFAULT_CLEARANCE,
+    model: mujoco.MjModel | None = None,
 ) -> CoarseReachPlan:
     """Plan the coarse reach to ``target`` from the world's current arm posture, holding the hand
-    at ``hand_q``: every approach is planned and the shortest existing path wins."""
+    at ``hand_q``: every approach is planned and the shortest existing path wins. ``model`` is
+    the model collisions are checked in (default the world's; the task cycle passes the
+    planning model holding the perceived target, :mod:`controllers.planning_model`)."""
     unknown = [a for a in approaches if a not in APPROACHES]
     if unknown or not approaches:
         raise ReachError(
             f"unknown approach {unknown or approaches!r}; valid: {', '.join(APPROACHES)}"
         )
-    checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q)
+    checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q, model=model)
     q_start = world.arm_qpos()
     base_xy = world.data.xpos[
         mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))

@@ -7,6 +7,12 @@ reachable by the hand?), pause while the arm changes posture, and resume. A
 (``theta <- theta - gain * gradient`` of a :class:`~controllers.grasp.composition.Composer`,
 the same convergence test and step limit, section 3.6.2), so a synthesis run to the end gives the
 same contacts as ``run_trials`` from the same initial contacts and generator.
+
+One addition the robot needs and the paper's point contacts do not: ``min_separation``. A
+fingertip is a pad of finite size, and two contacts closer than two pads cannot both be taken;
+with ``min_separation`` > 0 every step is followed by a projection that pushes such pairs apart
+along the outline (:func:`separate_contacts`), a projected gradient descent on the same
+objective. With 0 (the default) the controller is the paper's.
 """
 
 from __future__ import annotations
@@ -27,6 +33,39 @@ from controllers.grasp.trials import (
     PolygonBatch,
     control_state,
 )
+
+
+#: Passes of :func:`separate_contacts` at most.
+SEPARATION_PASSES = 30
+
+
+def separate_contacts(
+    polygon: Polygon, theta: ArrayLike, min_distance: float
+) -> NDArray[np.float64]:
+    """Contact coordinates ``theta`` (n,) with every pair of contact points at least
+    ``min_distance`` apart (polygon units), obtained by pushing close pairs apart along the
+    outline, each contact by half the shortfall (an arc of length s at distance r from the
+    centroid spans at most s / r radians)."""
+    th = np.asarray(theta, dtype=float).copy()
+    n = len(th)
+    for _ in range(SEPARATION_PASSES):
+        p = polygon.point_at(th)
+        r = np.maximum(np.linalg.norm(p, axis=1), 1e-12)
+        moved = False
+        for i in range(n):
+            for j in range(i + 1, n):
+                d = float(np.linalg.norm(p[i] - p[j]))
+                if d >= min_distance:
+                    continue
+                sign = 1.0 if wrap_angle(th[j] - th[i]) >= 0 else -1.0
+                need = 0.5 * (min_distance - d) * 1.05
+                th[i] -= sign * need / r[i]
+                th[j] += sign * need / r[j]
+                moved = True
+        th = wrap_angle(th)
+        if not moved:
+            break
+    return th
 
 
 @dataclass(frozen=True)
@@ -59,6 +98,7 @@ class GraspSynthesis:
         gain: float = GAIN,
         max_steps: int = MAX_STEPS,
         task: ArrayLike | None = None,
+        min_separation: float = 0.0,
     ) -> None:
         theta = np.asarray(theta_initial, dtype=float).reshape(1, -1)
         if theta.shape[1] < 2 or not np.all(np.isfinite(theta)):
@@ -75,9 +115,12 @@ class GraspSynthesis:
         self.gain = float(gain)
         self.max_steps = int(max_steps)
         self.task = task
+        self.min_separation = float(min_separation)
         self._batch = PolygonBatch.of([polygon])
         self._index = np.zeros(1, dtype=np.int64)
         self._theta = wrap_angle(theta)
+        if self.min_separation > 0:
+            self._theta = separate_contacts(polygon, self._theta[0], self.min_separation)[None]
         self.steps = 0
         self.converged = False
         self.composer.begin(1, rng)
@@ -118,9 +161,11 @@ class GraspSynthesis:
         before = self._state
         predicted = self.predicts_failure()
         grad = self.composer.gradient(before, self.rng)
-        delta = -self.gain * grad
-        self._theta = wrap_angle(self._theta + delta)
-        moved = float(np.abs(delta).max())
+        theta = wrap_angle(self._theta - self.gain * grad)
+        if self.min_separation > 0:
+            theta = separate_contacts(self.polygon, theta[0], self.min_separation)[None]
+        moved = float(np.abs(wrap_angle(theta - self._theta)).max())
+        self._theta = theta
         self.steps += 1
         self.converged = moved <= CONVERGENCE_STEP
         self._state = control_state(

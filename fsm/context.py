@@ -1,0 +1,128 @@
+"""What the states of one episode share: the options it was started with and what each state
+learned (the perceived block, the plan, the contacts, the grip), in one dataclass that travels
+from state to state (no globals, nothing hidden in the World)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.grasp.composition import Composer
+from controllers.grasp.session import GraspSynthesis
+from controllers.grip import Grip
+from controllers.hand_reach import FingerContacts, HandReach, PerceivedPrism
+from controllers.reach import CoarseReachPlan, ReachTarget
+from hand_sim.world import World
+
+#: Controllers and approaches the command line accepts.
+CONTROLLERS = ("pi", "kb", "ql")
+APPROACH_CHOICES = ("auto", "top", "lateral")
+
+
+@dataclass(frozen=True)
+class EpisodeOptions:
+    """How an episode was asked for (``python -m fsm.run`` flags)."""
+
+    scene: str = "clutter3"
+    seed: int = 0
+    blocks: int | None = None  #: number of blocks of a random scene
+    pick: str | None = None  #: block name to pick first
+    pick_pixel: tuple[float, float] | None = None  #: (u, v) in the vision image
+    place: tuple[float, float] | None = None  #: world (x, y) of the first place point
+    place_pixel: tuple[float, float] | None = None
+    controller: str = "pi"
+    approach: str = "auto"
+    cycles: int | None = 1  #: None: all blocks
+    out: Path = Path("runs/clutter3-0")
+    record: bool = True
+    models: Path | None = None  #: trained models folder (default: the shipped ones)
+
+
+@dataclass
+class CycleRecord:
+    """What one pick-and-place cycle did, for the summary."""
+
+    index: int
+    block: str | None = None  #: scene name of the picked block (for judging)
+    place: tuple[float, float] | None = None
+    approach: str = ""
+    polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
+    polygon_error: dict[str, float] | None = None  #: against the true footprint
+    contacts: list[list[float]] | None = None  #: world contact points, finger order
+    contact_theta: list[float] | None = None
+    s_g: float | None = None
+    synthesis_steps: int = 0
+    converged: bool = False
+    posture_retries: int = 0
+    fine_reach_loops: int = 0
+    reach_reasons: list[str] = field(default_factory=list)
+    grip_forces: list[float] | None = None  #: N per finger after the squeeze
+    grip_target: list[float] | None = None
+    lift_height: float | None = None  #: m, block rise during the lift
+    lift_slip: float | None = None  #: m, palm rise minus block rise
+    lift_clearance: float = 0.0  #: m, highest block bottom above the table while carried
+    judgement: dict[str, Any] | None = None
+    success: bool = False
+    failure: str | None = None
+    failure_detail: str = ""
+
+
+@dataclass
+class Episode:
+    """The running episode: options, world, and what the states have learned so far."""
+
+    options: EpisodeOptions
+    world: World
+    rng: np.random.Generator
+    composer: Composer
+    recorder: Any | None = None  #: fsm.recording.EpisodeRecorder
+    cycle: int = 0
+    cycles: list[CycleRecord] = field(default_factory=list)
+    delivered: list[str] = field(default_factory=list)  #: scene names of delivered blocks
+    place: NDArray[np.float64] | None = None
+    # Select/Model
+    selection: Any | None = None  #: vision.Selection of the current view
+    model: Any | None = None  #: vision.ObjectModel of the picked block
+    target: ReachTarget | None = None
+    planning: mujoco.MjModel | None = None
+    prism: PerceivedPrism | None = None
+    others_before: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    # reach and grasp
+    coarse: CoarseReachPlan | None = None
+    posture_mode: str = "hold"  #: "hold" (after Fine Reach) or "contacts" (from Wrench Closure)
+    synthesis: GraspSynthesis | None = None
+    contacts: FingerContacts | None = None
+    reach: HandReach | None = None
+    grip: Grip | None = None
+    empty_hand_force: NDArray[np.float64] | None = None
+    expected_load: float = 0.0  #: N, perceived volume x wood density x g
+
+    @property
+    def record(self) -> CycleRecord:
+        """The current cycle's record."""
+        return self.cycles[-1]
+
+    @property
+    def target_name(self) -> str:
+        """Scene name of the picked block (known to the simulator; used to address its body)."""
+        name = self.record.block
+        if name is None:
+            raise RuntimeError("no block has been picked in this cycle")
+        return name
+
+    def new_cycle(self) -> CycleRecord:
+        self.cycles.append(CycleRecord(index=len(self.cycles)))
+        self.model = self.target = self.planning = self.prism = None
+        self.coarse = self.synthesis = self.contacts = self.reach = self.grip = None
+        self.posture_mode = "hold"
+        return self.record
+
+
+def out_paths(out: Path) -> tuple[Path, Path]:
+    """The episode's recording and summary files in folder ``out``."""
+    return out / "episode.rrd", out / "summary.json"

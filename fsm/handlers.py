@@ -1,0 +1,561 @@
+"""One function per state of the task cycle (section 5.2): each calls into ``vision`` and
+``controllers``, updates the :class:`~fsm.context.Episode` and returns the next state with the
+reason for the transition, or raises :class:`EpisodeFailure` with a named reason."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from controllers.cspace import CollisionChecker
+from controllers.fine_reach import fine_reach, project_to_surface
+from controllers.grasp.score import grasp_score
+from controllers.grasp.session import GraspSynthesis
+from controllers.grip import PRE_CONTACT, close, move_hand, plan_grip, release, squeeze
+from controllers.hand_reach import (
+    MIN_PAD_SPACING,
+    PerceivedPrism,
+    grip_targets,
+    reachable_contacts,
+)
+from controllers.planning_model import PERCEIVED_GEOM, planning_model
+from controllers.posture import HandIndices, apply_posture, solve_posture
+from controllers.reach import APPROACHES, ReachTarget, execute_path, plan_coarse_reach, plan_delivery
+from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
+from fsm.context import Episode
+from fsm.judge import judge
+from fsm.layout import free_slot, place_is_free
+from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, Failure, State
+from hand_sim import robot
+from hand_sim.blocks import WOOD_DENSITY
+from hand_sim.geometry import place_polygon
+from vision import Observation, VisionError, analyze, overhead_camera
+from vision.errors import NotABlockError
+
+#: Fine Reach leaves each fingertip this far (m) outside its surface point; Wrench Closure then
+#: works from their projections.
+FINE_REACH_STANDOFF = 0.008
+#: Fine Reach counts as reached with every fingertip this close (m) to its target; beyond
+#: FINE_REACH_GIVE_UP the fingers cannot reach the block at all.
+FINE_REACH_TOLERANCE = 0.006
+FINE_REACH_GIVE_UP = 0.03
+#: Posture Control after Fine Reach: fingertips may drift this far (m) before Fine Reach repeats.
+POSTURE_DRIFT = 0.005
+#: Wrench Closure checks the contacts' reachability every this many controller steps and at the
+#: end (the paper: "until convergence, or until the reachability criterion is no longer
+#: satisfied").
+REACH_CHECK_EVERY = 10
+#: The grasp controller keeps its contacts this much (m) further apart than two pads need.
+SEPARATION_MARGIN = 0.002
+#: Fingers retract this far (m) from the block before the arm changes posture or the hand
+#: pre-shapes for the grasp.
+RETRACT = 0.015
+#: Times (s) of the hand's moves.
+RETRACT_TIME = 0.4
+PRESHAPE_TIME = 0.6
+ARM_MOVE_TIME = 1.0
+#: The held load must be at least this share of the perceived block's weight after the lift, and
+#: during the carry (wrist sensor), else the block slipped / was dropped.
+MIN_HELD_SHARE = 0.5
+#: Gravity (m/s^2) for the perceived block's expected weight.
+G = 9.81
+
+
+class EpisodeFailure(Exception):
+    """A state ends the episode: ``failure`` names the reason, ``detail`` says more."""
+
+    def __init__(self, failure: Failure, detail: str = "") -> None:
+        super().__init__(f"{failure.value}: {detail}" if detail else failure.value)
+        self.failure = failure
+        self.detail = detail
+
+
+@dataclass(frozen=True)
+class Step:
+    """A state's result: the next state and why."""
+
+    next: State
+    reason: str
+
+
+Handler = Callable[[Episode], Step]
+
+
+# --- Select/Model -------------------------------------------------------------------------------
+def perceive(ep: Episode) -> None:
+    """Render the overhead view and segment it (the scene names label the regions, as a
+    simulator's object labels would; the shapes and poses come from the image)."""
+    world = ep.world
+    with overhead_camera(world) as cam:
+        obs = Observation.capture(cam)
+    names = {b.name: world.block_pose(b.name)[0][:2] for b in world.scene.blocks}
+    ep.selection = analyze(obs, names)
+
+
+def _on_table(ep: Episode, index: int) -> bool:
+    centre = ep.selection.block_centres()[index][:2]
+    return bool(ep.world.scene.table.contains(centre[None], margin=0.0))
+
+
+def _choose_block(ep: Episode) -> int:
+    """Index (in the selection) of the block this cycle picks."""
+    sel = ep.selection
+    opts = ep.options
+    if ep.cycle == 0 and opts.pick_pixel is not None:
+        return sel.index_at_pixel(opts.pick_pixel)
+    if ep.cycle == 0:
+        return sel.index_of_name(opts.pick or ep.world.scene.target)
+    # later cycles: the remaining block nearest the place point is cleared first
+    remaining = [
+        i
+        for i, name in enumerate(sel.names)
+        if name is not None and name not in ep.delivered and _on_table(ep, i)
+    ]
+    if not remaining:
+        raise LookupError("no block left")
+    centres = sel.block_centres()[:, :2]
+    base = np.asarray(robot_base_xy(ep))
+    return min(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
+
+
+def robot_base_xy(ep: Episode) -> tuple[float, float]:
+    body = ep.world.model.body(robot.arm_name("arm_base")).id
+    x, y = ep.world.data.xpos[body][:2]
+    return float(x), float(y)
+
+
+def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -> np.ndarray:
+    """This cycle's place point: the asked one first, then free slots near it."""
+    scene = ep.world.scene
+    first = np.asarray(ep.options.place if ep.options.place is not None else scene.place)
+    if ep.cycle == 0:
+        if not place_is_free(first, radius, footprints, scene.table):
+            raise EpisodeFailure(
+                Failure.PLACE_UNREACHABLE,
+                f"place point {first.round(3).tolist()} is occupied by another block",
+            )
+        return first
+    reach = (robot_base_xy(ep), 0.35, 0.95)
+    slot = free_slot(first, radius, footprints, scene.table, reach)
+    if slot is None:
+        raise EpisodeFailure(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
+    return slot
+
+
+def _other_footprints(ep: Episode, index: int) -> list[np.ndarray]:
+    """World footprints of the other blocks on the table as perceived (a block whose polygon
+    cannot be extracted counts by its convex region of pixels on the table plane)."""
+    out = []
+    g = ep.selection.observation.geometry
+    for i, region in enumerate(ep.selection.blocks):
+        if i == index or not _on_table(ep, i):
+            continue
+        try:
+            out.append(ep.selection.model(i).world_vertices)
+        except VisionError:
+            v, u = np.nonzero(region.top_mask)
+            pixels = np.column_stack([u, v]).astype(np.float32)
+            hull = cv2.convexHull(pixels).reshape(-1, 2)
+            out.append(np.array([g.pixel_to_plane(p, region.z_top)[:2] for p in hull]))
+    return out
+
+
+def select_model(ep: Episode) -> Step:
+    """Select/Model: the picked block's polygon, centroid and yaw from the overhead image."""
+    record = ep.new_cycle()
+    perceive(ep)
+    try:
+        index = _choose_block(ep)
+    except LookupError:
+        return Step(State.DONE, "no block left to pick")
+    except NotABlockError as e:
+        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+    except VisionError as e:
+        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+    try:
+        model = ep.selection.model(index)
+    except VisionError as e:
+        raise EpisodeFailure(Failure.POLYGON_NOT_MODELLED, str(e)) from e
+    name = ep.selection.names[index]
+    if name is None:
+        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
+    record.block = name
+    ep.model = model
+    world = ep.world
+    table_z = world.scene.table.height
+    ep.target = ReachTarget.from_object_model(model)
+    ep.prism = PerceivedPrism.of(ep.target, table_z)
+    ep.planning = planning_model(
+        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
+    )
+    ep.expected_load = model.polygon.area * model.height * WOOD_DENSITY * G
+    record.polygon = model.polygon.vertices.round(5).tolist()
+    truth = world.scene.block(name)
+    true_pos = world.block_pose(name)[0]
+    record.polygon_error = {
+        "centroid_mm": float(np.linalg.norm(model.centroid[:2] - true_pos[:2]) * 1000),
+        "area_percent": float(abs(model.polygon.area - truth.polygon.area) / truth.polygon.area * 100),
+        "edges": float(model.n_edges),
+        "true_edges": float(truth.polygon.n_edges),
+    }
+    # the place point must be clear of every other perceived block
+    footprints = _other_footprints(ep, index)
+    radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
+    ep.place = _place_for_cycle(ep, footprints, radius)
+    record.place = (float(ep.place[0]), float(ep.place[1]))
+    ep.others_before = {
+        b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
+    }
+    if ep.recorder is not None:
+        ep.recorder.set_target(name)
+        ep.recorder.log_vision(
+            ep.selection.observation.rgb,
+            ep.selection.observation.geometry.K,
+            ep.selection.observation.geometry.pose,
+            model.world_vertices,
+            model.pixel_contour,
+            float(model.centroid[2]),
+        )
+    return Step(
+        State.COARSE_REACH,
+        f"picked {name}: {model.n_edges} edges, centroid "
+        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, yaw {np.degrees(model.yaw):.0f} deg; "
+        f"place at ({ep.place[0]:.3f}, {ep.place[1]:.3f})",
+    )
+
+
+# --- Coarse Reach -------------------------------------------------------------------------------
+def coarse_reach(ep: Episode) -> Step:
+    """Coarse Reach: a harmonic path in the arm's c-space to above (top) or beside (lateral)
+    the perceived block; the path determines the approach unless one is forced."""
+    approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
+    plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
+    if not plan.found:
+        raise EpisodeFailure(Failure.NO_COARSE_PATH, plan.reason)
+    ep.coarse = plan
+    ep.record.approach = plan.approach
+    run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
+    touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
+    lengths = ", ".join(f"{a} {p.length:.2f} rad" for a, p in plan.candidates.items() if p.found)
+    return Step(
+        State.FINE_REACH,
+        f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way",
+    )
+
+
+# --- Fine Reach ---------------------------------------------------------------------------------
+def fine_reach_state(ep: Episode) -> Step:
+    """Fine Reach: harmonic fields bring each fingertip near its projection on the perceived
+    block's surface (a touch guard stops a finger that arrives early)."""
+    result = fine_reach(
+        ep.world,
+        ep.target_name,
+        seen=ep.target,
+        tolerance=FINE_REACH_TOLERANCE,
+        standoff=FINE_REACH_STANDOFF,
+    )
+    worst = float(result.tip_error.max())
+    if not result.reached and worst > FINE_REACH_GIVE_UP:
+        finger = robot.FINGERS[int(np.argmax(result.tip_error))]
+        raise EpisodeFailure(
+            Failure.FINGERS_CANNOT_REACH,
+            f"{finger} stayed {worst * 1000:.0f} mm from its surface point",
+        )
+    ep.posture_mode = "hold"
+    return Step(
+        State.POSTURE_CONTROL,
+        f"fingertips {np.round(result.tip_error * 1000, 1).tolist()} mm from their targets"
+        + (f", stopped on touch: {', '.join(result.stopped_on_touch)}" if result.stopped_on_touch else ""),
+    )
+
+
+# --- Posture Control ----------------------------------------------------------------------------
+def _retract(ep: Episode) -> None:
+    """Move every fingertip RETRACT straight out from the perceived block's nearest face."""
+    world = ep.world
+    tips = world.fingertip_positions()
+    out = project_to_surface(ep.target, tips, table_z=world.scene.table.height)
+    sol = solve_posture(
+        world, tips + RETRACT * out.normals, optimize=False, joints="hand", model=ep.planning
+    )
+    move_hand(world, sol.hand_q, RETRACT_TIME)
+
+
+def _move_arm_and_hand(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
+    world = ep.world
+    a0, h0 = world.arm_targets(), world.hand_targets()
+    steps = max(1, round(0.02 / world.model.opt.timestep))
+    n = max(1, round(ARM_MOVE_TIME / 0.02))
+    for k in range(1, n + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        world.set_arm_targets(a0 + s * (arm_q - a0))
+        world.set_hand_targets(h0 + s * (hand_q - h0))
+        world.step(steps)
+    world.step(round(0.3 / world.model.opt.timestep))
+
+
+def posture_control(ep: Episode) -> Step:
+    """Posture Control (Grupen & Souccar, ref. [16]): the arm and hand reconfigure to maximise
+    the hand's manipulability, holding the fingertips (after Fine Reach) or bringing the current
+    virtual contacts within the fingers' reach (from Wrench Closure), never touching anything
+    but the block's surface with the pads (collision avoidance in the perceived world)."""
+    world = ep.world
+    if ep.posture_mode == "hold":
+        sol = solve_posture(
+            world,
+            model=ep.planning,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+        )
+        before = world.fingertip_positions()
+        if sol.reachable:
+            apply_posture(world, sol)
+        drift = float(np.linalg.norm(world.fingertip_positions() - before, axis=1).max())
+        gain = sol.log_manipulability_end - sol.log_manipulability_start
+        if drift > POSTURE_DRIFT and ep.record.fine_reach_loops < MAX_FINE_REACH_LOOPS:
+            ep.record.fine_reach_loops += 1
+            return Step(State.FINE_REACH, f"fingertips drifted {drift * 1000:.1f} mm")
+        return Step(
+            State.WRENCH_CLOSURE, f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm"
+        )
+    # contacts mode: make the virtual contacts reachable
+    contacts = ep.contacts
+    tips, centres = grip_targets(contacts.points, contacts.normals)
+    sol = solve_posture(
+        world,
+        tips,
+        joints="arm+hand",
+        model=ep.planning,
+        avoid_collisions=True,
+        touchable=PERCEIVED_GEOM,
+        pad_centres=centres,
+    )
+    if not sol.reachable:
+        if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
+            raise EpisodeFailure(
+                Failure.CONTACT_UNREACHABLE,
+                f"after {ep.record.posture_retries} posture retries: "
+                f"{', '.join(sol.unreachable)} cannot reach",
+            )
+        return Step(State.WRENCH_CLOSURE, f"no posture reaches {', '.join(sol.unreachable)}")
+    # the hand's pre-contact posture at the new arm posture
+    qpos = world.data.qpos.copy()
+    m = world.model
+    qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]] = sol.arm_q
+    qpos[HandIndices.of(m).finger_qpos.ravel()] = sol.hand_q
+    pre, pre_pads = grip_targets(contacts.points, contacts.normals, -PRE_CONTACT)
+    hand_pre = solve_posture(
+        world, pre, optimize=False, joints="hand", model=ep.planning, pad_centres=pre_pads, qpos=qpos
+    ).hand_q
+    _retract(ep)
+    _move_arm_and_hand(ep, sol.arm_q, hand_pre)
+    return Step(State.WRENCH_CLOSURE, "arm reconfigured so that the contacts are within reach")
+
+
+# --- Wrench Closure -----------------------------------------------------------------------------
+def wrench_closure(ep: Episode) -> Step:
+    """Wrench Closure: the grasp controller (kb, ql or pi) moves virtual contacts on the
+    perceived polygon from the fingertips' projections until it converges; every
+    REACH_CHECK_EVERY steps the hand's reachability of the contacts is checked and an unreachable
+    set sends the machine back to Posture Control."""
+    world = ep.world
+    table_z = world.scene.table.height
+    record = ep.record
+    if ep.synthesis is None:
+        start = project_to_surface(ep.target, world.fingertip_positions(), table_z=table_z)
+        ep.synthesis = GraspSynthesis(
+            ep.target.polygon,
+            ep.composer,
+            start.theta,
+            ep.rng,
+            min_separation=MIN_PAD_SPACING + SEPARATION_MARGIN,
+        )
+    syn = ep.synthesis
+    while True:
+        if not syn.done:
+            step = syn.step()
+            record.synthesis_steps = syn.steps
+            if ep.recorder is not None:
+                fc_world = _contact_points(ep, syn.theta)
+                ep.recorder.log_synthesis(
+                    step.step, step.eps_fc, step.eps_mc, step.predicted_failure, fc_world
+                )
+            if syn.steps % REACH_CHECK_EVERY and not syn.done:
+                continue
+        contacts, reach = reachable_contacts(
+            world, ep.prism, ep.target, syn.theta, model=ep.planning, check_spacing=syn.done
+        )
+        ep.contacts, ep.reach = contacts, reach
+        if syn.done and reach.min_spacing < MIN_PAD_SPACING:
+            raise EpisodeFailure(Failure.CONTACT_UNREACHABLE, reach.reason)
+        if ep.recorder is not None:
+            ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
+        if not reach.reachable:
+            record.reach_reasons.append(reach.reason)
+            if record.posture_retries >= MAX_POSTURE_RETRIES:
+                raise EpisodeFailure(
+                    Failure.CONTACT_UNREACHABLE,
+                    f"after {record.posture_retries} posture retries: {reach.reason}",
+                )
+            record.posture_retries += 1
+            ep.posture_mode = "contacts"
+            return Step(State.POSTURE_CONTROL, f"step {syn.steps}: {reach.reason}")
+        if syn.done:
+            break
+    score = syn.finish()
+    record.converged = syn.converged
+    record.s_g = float(score.s_g) if score.feasible else None
+    record.contacts = ep.contacts.points.round(5).tolist()
+    record.contact_theta = ep.contacts.theta.round(5).tolist()
+    if not syn.converged:
+        raise EpisodeFailure(
+            Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
+        )
+    if not score.success:
+        what = f"S_G {score.s_g:.3f} > 0.4" if score.feasible else "no feasible grasp (S_G LP)"
+        raise EpisodeFailure(Failure.GRASP_NOT_CONVERGED, f"converged to a weak grasp: {what}")
+    return Step(
+        State.GRASP_OBJECT,
+        f"converged in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
+        f"(pads {np.degrees(ep.reach.pad_angle).round(0).tolist()} deg off their faces)",
+    )
+
+
+def _contact_points(ep: Episode, theta: np.ndarray) -> np.ndarray:
+    """World points (n, 3) of contacts ``theta`` on the perceived polygon, at the top's height
+    less 3 cm (for drawing)."""
+    frames = ep.target.polygon.locate(theta)
+    xy = place_polygon(frames.point, ep.target.position_xy, ep.target.yaw)
+    return np.column_stack([xy, np.full(len(xy), ep.target.top_z - 0.03)])
+
+
+# --- Grasp Object -------------------------------------------------------------------------------
+def grasp_object(ep: Episode) -> Step:
+    """Grasp Object: the fingers go from their approach posture to the synthesized contacts,
+    each stopping when its pad feels the block, then squeeze to the grip force."""
+    world = ep.world
+    contacts = ep.contacts
+    unit = ep.target.polygon.unit_moment()
+    frames = unit.locate(contacts.theta)
+    shares = grasp_score(frames.point, frames.normal).normal_forces
+    _retract(ep)
+    world.step(round(0.2 / world.model.opt.timestep))
+    ep.empty_hand_force = world.wrist_wrench()[0]
+    ep.grip = plan_grip(world, contacts.points, contacts.normals, shares, model=ep.planning)
+    move_hand(world, ep.grip.q_pre, PRESHAPE_TIME)
+    closing = close(world, ep.grip)
+    if not closing.all_touched:
+        missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
+        raise EpisodeFailure(
+            Failure.FINGERS_CANNOT_REACH, f"{', '.join(missing)} did not touch the block"
+        )
+    result = squeeze(world, ep.grip)
+    ep.record.grip_forces = result.touch.round(3).tolist()
+    ep.record.grip_target = result.target.round(3).tolist()
+    return Step(
+        State.DELIVER,
+        f"all four pads touch; squeezed to {np.round(result.touch, 1).tolist()} N "
+        f"(mean target {result.target.mean():.1f} N)",
+    )
+
+
+# --- Deliver ------------------------------------------------------------------------------------
+class _Dropped(Exception):
+    pass
+
+
+def deliver(ep: Episode) -> Step:
+    """Deliver: lift, carry along a harmonic path planned with the block in the hand, lower
+    until the table takes the weight (wrist sensor), release along the contact normals, retreat;
+    then judge the placement physically."""
+    world = ep.world
+    name = ep.target_name
+    record = ep.record
+    checker = CollisionChecker(world)
+    table_z = world.scene.table.height
+    half = 0.5 * world.scene.block(name).height  # to measure clearance (judging only)
+    log = ep.recorder.log_transition if ep.recorder is not None else (lambda *a, **k: None)
+
+    def clearance_now(w) -> float:
+        return float(w.block_pose(name)[0][2] - half - table_z)
+
+    lifted = lift(world, checker, name, ep.grip)
+    record.lift_height = float(lifted.block_rise)
+    record.lift_slip = float(lifted.slip)
+    record.lift_clearance = max(record.lift_clearance, clearance_now(world))
+    load = held_load(world, ep.empty_hand_force)
+    if load < MIN_HELD_SHARE * ep.expected_load or (world.touch() <= 0.0).sum() > 1:
+        raise EpisodeFailure(
+            Failure.SLIPPED_DURING_LIFT,
+            f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
+            f"touch {np.round(world.touch(), 2).tolist()} N",
+        )
+    log(State.DELIVER.value, State.DELIVER.value, f"lifted: block rose {lifted.block_rise * 100:.1f} cm")
+    plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+    if not plan.found:
+        raise EpisodeFailure(Failure.PLACE_UNREACHABLE, plan.reason)
+
+    def watch(w) -> None:
+        record.lift_clearance = max(record.lift_clearance, clearance_now(w))
+        if held_load(w, ep.empty_hand_force) < MIN_HELD_SHARE * ep.expected_load:
+            raise _Dropped
+
+    try:
+        carry(world, plan.path, ep.grip, on_period=watch)
+    except _Dropped as e:
+        raise EpisodeFailure(
+            Failure.DROPPED_IN_TRANSPORT,
+            f"the wrist sensor lost the block's weight at t = {world.time:.2f} s",
+        ) from e
+    log(State.DELIVER.value, State.DELIVER.value, "carried to the place point; lowering")
+    down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
+    if not down.supported:
+        raise EpisodeFailure(
+            Failure.SET_DOWN_NOT_SENSED,
+            f"lowered {down.lowered * 100:.1f} cm; the hand still holds {down.load_after:.2f} N",
+        )
+    release(world, ep.grip)
+    retreat(world, checker)
+    world.step(round(0.5 / world.model.opt.timestep))
+    verdict = judge(world, name, ep.place, record.lift_clearance, ep.others_before)
+    record.judgement = {
+        "place_error_mm": verdict.place_error_mm,
+        "tilt_deg": verdict.tilt_deg,
+        "speed_m_s": verdict.speed,
+        "spin_rad_s": verdict.spin,
+        "lift_clearance_m": verdict.lift_clearance,
+        "finger_contact": verdict.finger_contact,
+        "palm_distance_m": verdict.palm_distance,
+        "other_blocks_moved_m": verdict.other_motion,
+        "final_position": verdict.final_position.round(5).tolist(),
+        "final_quat_wxyz": verdict.final_quat.round(5).tolist(),
+        "reasons": list(verdict.reasons),
+    }
+    if not verdict.success:
+        raise EpisodeFailure(Failure.NOT_PLACED, "; ".join(verdict.reasons))
+    record.success = True
+    ep.delivered.append(name)
+    summary = (
+        f"{name} placed {verdict.place_error_mm:.1f} mm from the place point, "
+        f"tilt {verdict.tilt_deg:.1f} deg"
+    )
+    cycles = ep.options.cycles
+    if cycles is None or len(ep.cycles) < cycles:
+        ep.cycle += 1
+        return Step(State.SELECT_MODEL, summary + "; next block")
+    return Step(State.DONE, summary)
+
+
+HANDLERS: dict[State, Handler] = {
+    State.SELECT_MODEL: select_model,
+    State.COARSE_REACH: coarse_reach,
+    State.FINE_REACH: fine_reach_state,
+    State.POSTURE_CONTROL: posture_control,
+    State.WRENCH_CLOSURE: wrench_closure,
+    State.GRASP_OBJECT: grasp_object,
+    State.DELIVER: deliver,
+}
+

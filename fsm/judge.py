@@ -1,0 +1,134 @@
+"""Is the block really placed? The physical judgement of one delivery (issue 9, "Success is
+physical"), from the simulation's true state after the hand has retreated; nothing is read back
+from a commanded target.
+
+A delivery succeeds when the block is within :data:`PLACE_TOLERANCE` of the place point
+(horizontally), upright (tilt under :data:`MAX_TILT_DEG`), at rest (under :data:`MAX_SPEED` and
+:data:`MAX_SPIN`), was lifted at least :data:`MIN_LIFT` clear of the table while carried, no finger
+touches it and the palm is at least :data:`MIN_PALM_DISTANCE` away, and no other block moved more
+than :data:`MAX_OTHER_MOTION`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hand_sim import robot
+from hand_sim.contacts import robot_contacts
+from hand_sim.world import World
+
+PLACE_TOLERANCE = 0.02  #: m
+MAX_TILT_DEG = 10.0
+MAX_SPEED = 0.01  #: m/s
+MAX_SPIN = 0.5  #: rad/s
+MIN_LIFT = 0.05  #: m, block bottom above the table during the carry
+MIN_PALM_DISTANCE = 0.05  #: m, palm (any palm geom) to the block
+MAX_OTHER_MOTION = 0.01  #: m
+
+
+def tilt_degrees(quat: ArrayLike) -> float:
+    """Angle (deg) between a body's z axis and the world's z axis, from its (w, x, y, z)
+    quaternion."""
+    w, x, y, z = np.asarray(quat, dtype=float)
+    cos_tilt = 1.0 - 2.0 * (x * x + y * y)
+    return float(np.degrees(np.arccos(np.clip(cos_tilt, -1.0, 1.0))))
+
+
+def block_velocity(world: World, name: str) -> tuple[float, float]:
+    """Linear (m/s) and angular (rad/s) speed of block ``name``."""
+    m = world.model
+    body = world.block_body_id(name)
+    dof = m.jnt_dofadr[m.body_jntadr[body]]
+    v = world.data.qvel[dof : dof + 6]
+    return float(np.linalg.norm(v[:3])), float(np.linalg.norm(v[3:]))
+
+
+def palm_distance(world: World, name: str) -> float:
+    """Smallest distance (m) between the palm's geoms and block ``name``'s."""
+    m, d = world.model, world.data
+    palm = m.body(robot.hand_name(robot.PALM_BODY)).id
+    block = world.block_body_id(name)
+    palm_geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == palm and m.geom_contype[g]]
+    block_geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == block]
+    best = np.inf
+    fromto = np.zeros(6)
+    for a in palm_geoms:
+        for b in block_geoms:
+            best = min(best, mujoco.mj_geomDistance(m, d, a, b, 1.0, fromto))
+    return float(best)
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """The physical verdict of one delivery, with every measured quantity."""
+
+    success: bool
+    reasons: tuple[str, ...]  #: what failed, empty on success
+    place_error_mm: float
+    tilt_deg: float
+    speed: float  #: m/s
+    spin: float  #: rad/s
+    lift_clearance: float  #: m, highest block bottom above the table during the carry
+    finger_contact: bool
+    palm_distance: float  #: m
+    other_motion: dict[str, float]  #: m, each other block's horizontal displacement
+    final_position: NDArray[np.float64]  #: (3,)
+    final_quat: NDArray[np.float64]  #: (4,) w, x, y, z
+
+
+def judge(
+    world: World,
+    block: str,
+    place: ArrayLike,
+    lift_clearance: float,
+    others_before: dict[str, NDArray[np.float64]],
+) -> Judgement:
+    """Judge the delivery of ``block`` to ``place`` (x, y) now; ``lift_clearance`` is the highest
+    block-bottom-above-table height measured during the carry, ``others_before`` every other
+    block's position (3,) before the cycle began."""
+    pos, quat = world.block_pose(block)
+    err = float(np.linalg.norm(pos[:2] - np.asarray(place, dtype=float)))
+    tilt = tilt_degrees(quat)
+    speed, spin = block_velocity(world, block)
+    touching = any(c.finger in robot.FINGERS for c in robot_contacts(world, world.block_body_id(block)))
+    palm = palm_distance(world, block)
+    moved = {
+        name: float(np.linalg.norm(world.block_pose(name)[0][:2] - p[:2]))
+        for name, p in others_before.items()
+    }
+    reasons = []
+    if err > PLACE_TOLERANCE:
+        reasons.append(f"{err * 1000:.0f} mm from the place point (> {PLACE_TOLERANCE * 1000:.0f})")
+    if tilt >= MAX_TILT_DEG:
+        reasons.append(f"tilted {tilt:.1f} deg (>= {MAX_TILT_DEG:g})")
+    if speed >= MAX_SPEED or spin >= MAX_SPIN:
+        reasons.append(f"not at rest ({speed * 100:.1f} cm/s, {spin:.2f} rad/s)")
+    if lift_clearance < MIN_LIFT:
+        reasons.append(
+            f"lifted only {lift_clearance * 100:.1f} cm clear of the table (< {MIN_LIFT * 100:g})"
+        )
+    if touching:
+        reasons.append("a finger still touches it")
+    if palm < MIN_PALM_DISTANCE:
+        reasons.append(f"palm {palm * 100:.1f} cm from it (< {MIN_PALM_DISTANCE * 100:g})")
+    for name, d in moved.items():
+        if d > MAX_OTHER_MOTION:
+            reasons.append(f"block {name!r} moved {d * 1000:.0f} mm")
+    return Judgement(
+        success=not reasons,
+        reasons=tuple(reasons),
+        place_error_mm=err * 1000.0,
+        tilt_deg=tilt,
+        speed=speed,
+        spin=spin,
+        lift_clearance=float(lift_clearance),
+        finger_contact=touching,
+        palm_distance=palm,
+        other_motion=moved,
+        final_position=pos,
+        final_quat=quat,
+    )

@@ -1,0 +1,219 @@
+"""The finite state machine of Figure 14: it owns the loop, the clock and the recorder.
+
+:func:`run_episode` builds the world, then enters states one after another through the handlers
+of :mod:`fsm.handlers`, checking every hand-over against :data:`fsm.states.TRANSITIONS` and every
+state's simulated time against its budget. A failure of any kind (a named reason, an unstable
+simulation, a budget overrun, Ctrl-C) ends the episode in ``Failed`` with its reason; the summary
+and the recording are written in every case.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controllers.errors import ReachError
+from controllers.grasp.registry import make_composer
+from fsm.context import Episode, EpisodeOptions, out_paths
+from fsm.handlers import HANDLERS, EpisodeFailure
+from fsm.layout import episode_scene
+from fsm.states import TRANSITIONS, Failure, State, allowed
+from hand_sim.errors import SimulationError
+from hand_sim.world import World
+
+#: Whole-episode budget (simulated seconds) per cycle.
+CYCLE_BUDGET = 150.0
+
+
+class BudgetExceeded(Exception):
+    """A state ran past its simulated-time budget."""
+
+
+@dataclass
+class Visit:
+    """One stay in a state."""
+
+    state: str
+    cycle: int
+    sim_start: float
+    sim_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    reason: str = ""  #: why it handed over (or failed)
+    next: str = ""
+
+
+@dataclass
+class EpisodeResult:
+    """Everything the summary holds."""
+
+    success: bool
+    failure: str | None
+    failure_detail: str
+    options: dict[str, Any]
+    scene: str
+    visits: list[Visit] = field(default_factory=list)
+    cycles: list[dict[str, Any]] = field(default_factory=list)
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    rrd: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["transitions"] = [f"{v.state} -> {v.next}: {v.reason}" for v in self.visits]
+        return out
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def write_summary(path: Path, result: EpisodeResult) -> None:
+    """Write ``summary.json`` atomically (a temporary name, then a rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(_jsonable(result.to_json()), indent=2, allow_nan=False) + "\n")
+    os.replace(tmp, path)
+
+
+class Clock:
+    """Watches simulated time per state; installed as the world's step hook together with the
+    recorder's tick."""
+
+    def __init__(self, world: World, recorder: Any | None) -> None:
+        self.world = world
+        self.recorder = recorder
+        self.state_start = world.time
+        self.budget = 0.0
+
+    def enter(self, state: State) -> None:
+        self.state_start = self.world.time
+        spec = TRANSITIONS.get(state)
+        self.budget = spec.budget if spec is not None else 0.0
+
+    def __call__(self, world: World) -> None:
+        if self.recorder is not None:
+            self.recorder.tick(world)
+        if self.budget and world.time - self.state_start > self.budget:
+            raise BudgetExceeded(
+                f"{world.time - self.state_start:.1f} s of simulated time (budget {self.budget:g} s)"
+            )
+
+
+def _failure_for(state: State, error: Exception) -> tuple[Failure, str]:
+    if isinstance(error, EpisodeFailure):
+        return error.failure, error.detail
+    if isinstance(error, SimulationError):
+        return Failure.SIMULATION_UNSTABLE, str(error)
+    if isinstance(error, BudgetExceeded):
+        return Failure.TIME_BUDGET_EXCEEDED, f"{state.value}: {error}"
+    if isinstance(error, ReachError):
+        mapping = {
+            State.DELIVER: Failure.PLACE_UNREACHABLE,
+            State.POSTURE_CONTROL: Failure.CONTACT_UNREACHABLE,
+            State.COARSE_REACH: Failure.NO_COARSE_PATH,
+        }
+        return mapping.get(state, Failure.FINGERS_CANNOT_REACH), str(error)
+    raise error
+
+
+def run_episode(
+    options: EpisodeOptions,
+    *,
+    announce: Callable[[str], None] | None = None,
+    recorder_factory: Callable[[Path, World], Any] | None = None,
+) -> EpisodeResult:
+    """Run one episode as ``options`` ask; write ``episode.rrd`` (unless ``options.record`` is
+    False) and ``summary.json`` into ``options.out``, also when it fails. ``announce`` receives a
+    line per state entered."""
+    wall0 = time.perf_counter()
+    rrd_path, summary_path = out_paths(options.out)
+    scene = episode_scene(options.scene, options.seed, options.blocks)
+    world = World.build(scene)
+    models = {"model_dir": options.models} if options.models is not None else {}
+    composer = make_composer(options.controller, **models)
+    rng = np.random.default_rng(options.seed)
+    recorder = None
+    if options.record:
+        if recorder_factory is None:
+            from fsm.recording import EpisodeRecorder
+
+            recorder_factory = EpisodeRecorder
+        recorder = recorder_factory(rrd_path, world)
+    ep = Episode(options, world, rng, composer, recorder)
+    result = EpisodeResult(
+        success=False,
+        failure=None,
+        failure_detail="",
+        options=_jsonable(asdict(options)),
+        scene=scene.name,
+        rrd=str(rrd_path) if recorder is not None else None,
+    )
+    clock = Clock(world, recorder)
+    world.on_step = clock
+    state = State.SELECT_MODEL
+    try:
+        while state not in (State.DONE, State.FAILED):
+            visit = Visit(state.value, ep.cycle, world.time)
+            result.visits.append(visit)
+            clock.enter(state)
+            if announce is not None:
+                announce(
+                    f"[sim {world.time:7.2f} s | wall {time.perf_counter() - wall0:6.1f} s] "
+                    f"cycle {ep.cycle}: {state.value}"
+                )
+            t0 = time.perf_counter()
+            try:
+                step = HANDLERS[state](ep)
+                following, reason = step.next, step.reason
+            except (EpisodeFailure, SimulationError, BudgetExceeded, ReachError) as e:
+                failure, detail = _failure_for(state, e)
+                following, reason = State.FAILED, f"{failure.value}: {detail}"
+                result.failure, result.failure_detail = failure.value, detail
+                if ep.cycles:
+                    ep.record.failure, ep.record.failure_detail = failure.value, detail
+            if not allowed(state, following):
+                raise RuntimeError(f"the machine went from {state.value} to {following.value}")
+            visit.sim_seconds = world.time - visit.sim_start
+            visit.wall_seconds = time.perf_counter() - t0
+            visit.reason, visit.next = reason, following.value
+            if recorder is not None:
+                level = "ERROR" if following is State.FAILED else "INFO"
+                recorder.log_transition(state.value, following.value, reason, level=level)
+            state = following
+    except KeyboardInterrupt:
+        result.failure, result.failure_detail = Failure.INTERRUPTED.value, "Ctrl-C"
+        if ep.cycles:
+            ep.record.failure = Failure.INTERRUPTED.value
+        raise
+    finally:
+        world.on_step = None
+        picked = [c for c in ep.cycles if c.block is not None]
+        result.success = state is State.DONE and bool(picked) and all(c.success for c in picked)
+        result.cycles = [_jsonable(asdict(c)) for c in ep.cycles if c.block is not None]
+        result.sim_time = world.time
+        result.wall_time = time.perf_counter() - wall0
+        if recorder is not None:
+            try:
+                verdict = "delivered" if result.success else f"failed: {result.failure}"
+                recorder.log_verdict(result.success, verdict)
+            finally:
+                recorder.close()
+        write_summary(summary_path, result)
+    return result

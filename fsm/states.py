@@ -1,0 +1,148 @@
+"""The states of the task cycle and everything about them a reader needs in one place: Figure 14
+of the paper (section 5.2) as a table of states, their guards, time budgets, the states each may
+hand over to, and the failure reasons each may end the episode with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+
+class State(Enum):
+    """The modules of section 5.2, sequenced by the finite state machine of Figure 14."""
+
+    SELECT_MODEL = "Select/Model"
+    COARSE_REACH = "Coarse Reach"
+    FINE_REACH = "Fine Reach"
+    POSTURE_CONTROL = "Posture Control"
+    WRENCH_CLOSURE = "Wrench Closure"
+    GRASP_OBJECT = "Grasp Object"
+    DELIVER = "Deliver"
+    DONE = "Done"
+    FAILED = "Failed"
+
+
+class Failure(Enum):
+    """Why an episode failed: each is named in the summary and printed on exit."""
+
+    NO_BLOCK_AT_PICK = "no block at the pick point"
+    POLYGON_NOT_MODELLED = "polygon not modelled"
+    NO_COARSE_PATH = "no coarse path"
+    FINGERS_CANNOT_REACH = "fingers cannot reach"
+    GRASP_NOT_CONVERGED = "grasp controller did not converge"
+    CONTACT_UNREACHABLE = "contact unreachable after posture retries"
+    SLIPPED_DURING_LIFT = "block slipped during lift"
+    DROPPED_IN_TRANSPORT = "block dropped in transport"
+    PLACE_UNREACHABLE = "place point unreachable or occupied"
+    SET_DOWN_NOT_SENSED = "set-down not sensed"
+    SIMULATION_UNSTABLE = "simulation unstable"
+    TIME_BUDGET_EXCEEDED = "time budget exceeded"
+    NOT_PLACED = "block not placed as asked"  # the physical judgement after the retreat
+    INTERRUPTED = "interrupted"
+
+
+#: Reasons any state can end with.
+ANY_STATE_FAILURES = (Failure.SIMULATION_UNSTABLE, Failure.TIME_BUDGET_EXCEEDED)
+#: Times Wrench Closure may send the machine back to Posture Control before giving up (the paper's
+#: "after a number of transitions between both modules"), and Fine Reach <-> Posture Control.
+MAX_POSTURE_RETRIES = 4
+MAX_FINE_REACH_LOOPS = 2
+
+
+@dataclass(frozen=True)
+class StateSpec:
+    """One row of the transition table."""
+
+    state: State
+    guard: str  #: what must hold on entry
+    budget: float  #: simulated seconds the state may take (0: none passes, it is instantaneous)
+    next: tuple[State, ...]  #: states it may hand over to (FAILED always allowed)
+    failures: tuple[Failure, ...]  #: reasons it may fail with (plus ANY_STATE_FAILURES)
+
+
+TRANSITIONS: dict[State, StateSpec] = {
+    s.state: s
+    for s in (
+        StateSpec(
+            State.SELECT_MODEL,
+            "the arm is parked clear of the table; a block to pick remains",
+            1.0,
+            (State.COARSE_REACH, State.DONE),
+            (Failure.NO_BLOCK_AT_PICK, Failure.POLYGON_NOT_MODELLED, Failure.PLACE_UNREACHABLE),
+        ),
+        StateSpec(
+            State.COARSE_REACH,
+            "a perceived polygon, centroid and yaw of the picked block",
+            25.0,
+            (State.FINE_REACH,),
+            (Failure.NO_COARSE_PATH,),
+        ),
+        StateSpec(
+            State.FINE_REACH,
+            "the hand is near the block in its pre-shape, top or lateral",
+            8.0,
+            (State.POSTURE_CONTROL,),
+            (Failure.FINGERS_CANNOT_REACH,),
+        ),
+        StateSpec(
+            State.POSTURE_CONTROL,
+            "fingertips near the block's surface (after Fine Reach) or contacts to make reachable "
+            "(from Wrench Closure)",
+            8.0,
+            (State.FINE_REACH, State.WRENCH_CLOSURE),
+            (Failure.CONTACT_UNREACHABLE,),
+        ),
+        StateSpec(
+            State.WRENCH_CLOSURE,
+            "all fingertips near the block's surface",
+            0.0,
+            (State.POSTURE_CONTROL, State.GRASP_OBJECT),
+            (Failure.GRASP_NOT_CONVERGED, Failure.CONTACT_UNREACHABLE),
+        ),
+        StateSpec(
+            State.GRASP_OBJECT,
+            "a converged grasp (S_G <= 0.4) whose contacts the hand reaches",
+            8.0,
+            (State.DELIVER,),
+            (Failure.FINGERS_CANNOT_REACH,),
+        ),
+        StateSpec(
+            State.DELIVER,
+            "all four pads feel the block at the grip force",
+            60.0,
+            (State.SELECT_MODEL, State.DONE),
+            (
+                Failure.SLIPPED_DURING_LIFT,
+                Failure.DROPPED_IN_TRANSPORT,
+                Failure.PLACE_UNREACHABLE,
+                Failure.SET_DOWN_NOT_SENSED,
+                Failure.NOT_PLACED,
+            ),
+        ),
+    )
+}
+
+
+def allowed(current: State, following: State) -> bool:
+    """Whether the table lets ``current`` hand over to ``following`` (FAILED always may)."""
+    if following is State.FAILED:
+        return current in TRANSITIONS
+    spec = TRANSITIONS.get(current)
+    return spec is not None and following in spec.next
+
+
+def table_markdown() -> str:
+    """The transition table as Markdown (for the README and docs)."""
+    rows = [
+        "| state | guard on entry | budget (sim s) | next | may fail with |",
+        "|---|---|---:|---|---|",
+    ]
+    for spec in TRANSITIONS.values():
+        budget = f"{spec.budget:g}" if spec.budget else "virtual"
+        rows.append(
+            f"| {spec.state.value} | {spec.guard} | {budget} | "
+            f"{', '.join(s.value for s in spec.next)} | "
+            f"{'; '.join(f.value for f in spec.failures)} |"
+        )
+    return "\n".join(rows)
