@@ -27,10 +27,11 @@ from hand_sim.geometry import (
     place_polygon,
     point_in_convex_polygon,
 )
+from hand_sim.resources import scenes_dir
 from hand_sim.tomlfields import TomlFields, read_toml
 
-#: Directory holding the scene files (``<name>.toml``).
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+#: Directory holding the scene files (``<name>.toml``), found by :mod:`hand_sim.resources`.
+SCENES_DIR = scenes_dir()
 #: Name of the seeded random scene; its generator defaults live in ``scenes/random.toml``.
 RANDOM_SCENE = "random"
 
