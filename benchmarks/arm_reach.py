@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
+from hand_sim.resources import models_dir
+
+MODELS = models_dir()
 ARM_JOINTS = ("waist", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
 FINGERS = ("ff", "mf", "rf", "th")
 

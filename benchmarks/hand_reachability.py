@@ -40,8 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp import PAPER_OBJECTS, Polygon, grasp_score, paper_object
+from hand_sim.resources import models_dir
 
-HAND_XML = Path(__file__).resolve().parent.parent / "models" / "hand.xml"
+HAND_XML = models_dir() / "hand.xml"
 FINGERS = ("ff", "mf", "rf", "th")
 
 #: Contact tolerance: tip site within this distance of a face (m).

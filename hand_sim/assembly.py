@@ -15,10 +15,11 @@ from dm_control import mjcf
 from hand_sim import robot
 from hand_sim.blocks import add_block
 from hand_sim.errors import SimulationError
+from hand_sim.resources import models_dir
 from hand_sim.scene import Scene, TableSpec
 
-#: Directory of the MJCF models (hand.xml, arm.xml, table.xml).
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+#: Directory of the MJCF models (hand.xml, arm.xml, table.xml), found by :mod:`hand_sim.resources`.
+MODELS_DIR = models_dir()
 ARM_XML, HAND_XML, TABLE_XML = "arm.xml", "hand.xml", "table.xml"
 #: Model name given to the attached table (its names get the prefix ``table/``).
 TABLE_MODEL = "table"

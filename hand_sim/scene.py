@@ -27,10 +27,11 @@ from hand_sim.geometry import (
     place_polygon,
     point_in_convex_polygon,
 )
+from hand_sim.resources import models_dir, scenes_dir
 from hand_sim.tomlfields import TomlFields, read_toml
 
-#: Directory holding the scene files (``<name>.toml``).
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+#: Directory holding the scene files (``<name>.toml``), found by :mod:`hand_sim.resources`.
+SCENES_DIR = scenes_dir()
 #: Name of the seeded random scene; its generator defaults live in ``scenes/random.toml``.
 RANDOM_SCENE = "random"
 
@@ -46,7 +47,7 @@ MIN_BLOCK_HEIGHT, MAX_BLOCK_HEIGHT = 0.01, 0.50
 
 #: The table model: one source of truth for the table top's size and height (its collision box
 #: ``table_top``); a scene may move the table (``position``) but not resize or raise it.
-TABLE_MODEL_FILE = Path(__file__).resolve().parent.parent / "models" / "table.xml"
+TABLE_MODEL_FILE = models_dir() / "table.xml"
 TABLE_TOP_GEOM = "table_top"
 #: Largest difference (m) tolerated between a scene's table ``size``/``height`` and the model's.
 TABLE_TOLERANCE = 1e-3
