@@ -23,13 +23,23 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import ReachError
-from controllers.hand_reach import SQUEEZE_REACH, grip_targets
+from controllers.hand_reach import (
+    SQUEEZE_REACH,
+    PerceivedPrism,
+    finger_clearance,
+    grip_targets,
+)
 from controllers.posture import HandIndices, solve_posture
 from hand_sim import robot
 from hand_sim.world import World
 
-#: Distance (m) of each fingertip outside its contact before closing, and after releasing.
+#: Distance (m) of each fingertip outside its contact before closing, and after releasing; a
+#: finger whose links would come within PRE_CLEARANCE (m) of the block there starts further out,
+#: in steps of PRE_CONTACT_STEP up to MAX_PRE_CONTACT.
 PRE_CONTACT = 0.012
+PRE_CLEARANCE = 0.003
+PRE_CONTACT_STEP = 0.004
+MAX_PRE_CONTACT = 0.024
 #: Control period (s) of the grip primitives.
 CONTROL_PERIOD = 0.02
 #: Closing speed: progress per second along the pre-contact-to-inside line (1 = the whole line;
@@ -91,10 +101,15 @@ def plan_grip(
     *,
     grip_force: float = GRIP_FORCE,
     model: mujoco.MjModel | None = None,
+    prism: PerceivedPrism | None = None,
 ) -> Grip:
     """The two postures of each finger for contacts ``points`` (4, 3) with outward ``normals``
     (finger order ff, mf, rf, th), arm held where it is now; ``force_shares`` (4,) are the
-    relative normal forces (e.g. the S_G LP's), scaled to a mean of ``grip_force`` N."""
+    relative normal forces (e.g. the S_G LP's), scaled to a mean of ``grip_force`` N.
+
+    With the block's ``prism`` given, a finger whose pre-contact posture would bring any of its
+    links within :data:`PRE_CLEARANCE` of the block starts from further out (up to
+    :data:`MAX_PRE_CONTACT`): closing then begins with every finger clear of the block."""
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     shares = np.asarray(force_shares, dtype=float)
@@ -106,12 +121,27 @@ def plan_grip(
     sol_in = solve_posture(
         world, inside, optimize=False, joints="hand", model=model, pad_centres=inside_pads
     )
-    pre, pre_pads = grip_targets(p, n, -PRE_CONTACT)
+    model = world.model if model is None else model
     data_q = world.data.qpos.copy()
-    data_q[HandIndices.of(world.model).finger_qpos.ravel()] = sol_in.hand_q
-    sol_pre = solve_posture(
-        world, pre, optimize=False, joints="hand", model=model, pad_centres=pre_pads, qpos=data_q
-    )
+    finger_qpos = HandIndices.of(model).finger_qpos.ravel()
+    data_q[finger_qpos] = sol_in.hand_q
+    standoff = np.full(4, PRE_CONTACT)
+    while True:
+        pre = p + standoff[:, None] * n
+        pre_pads = pre + robot.PAD_RADIUS * n
+        sol_pre = solve_posture(
+            world, pre, optimize=False, joints="hand", model=model, pad_centres=pre_pads, qpos=data_q
+        )
+        if prism is None:
+            break
+        data = mujoco.MjData(model)
+        data.qpos[:] = data_q
+        data.qpos[finger_qpos] = sol_pre.hand_q
+        mujoco.mj_kinematics(model, data)
+        tight = finger_clearance(model, data, prism) < PRE_CLEARANCE
+        if not tight.any() or standoff[tight].min() >= MAX_PRE_CONTACT:
+            break
+        standoff[tight] = np.minimum(standoff[tight] + PRE_CONTACT_STEP, MAX_PRE_CONTACT)
     return Grip(
         sol_pre.hand_q,
         sol_in.hand_q,

@@ -30,9 +30,11 @@ from controllers.reach import ReachTarget
 from hand_sim import robot
 from hand_sim.world import World
 
-#: Smallest distance (m) between two contact points: two pads of radius 8.5 mm side by side on a
-#: face need 17 mm between their centres; the rest is room for the finger links beside them.
-MIN_PAD_SPACING = 0.021
+#: Smallest distance (m) between the centres of two fingertip pads on their contacts (a pad's
+#: centre is one pad radius out from its contact along the face normal): two 8.5 mm pads need
+#: 17 mm; the rest is room for the finger links beside them. Contacts on faces at an angle may
+#: be closer than contacts side by side on one face.
+MIN_PAD_SPACING = 0.019
 #: A fingertip reaches its contact when its tip site ends this close (m) to the contact point.
 CONTACT_TOLERANCE = 0.002
 #: Largest angle (rad) between a fingertip's pad normal and the face's inward normal.
@@ -112,7 +114,7 @@ class HandReach:
     tip_error: NDArray[np.float64]  #: (4,) m
     pad_angle: NDArray[np.float64]  #: (4,) rad between pad normal and inward face normal
     penetration: float  #: deepest finger link inside the perceived block (m, >= 0)
-    min_spacing: float  #: closest pair of contact points (m)
+    min_spacing: float  #: closest pair of pad centres on their contacts (m)
 
 
 def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:
@@ -127,6 +129,22 @@ def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:
         for finger in robot.FINGERS:
             if name.startswith(robot.HAND_PREFIX + finger + "_"):
                 out.append((finger, g))
+    return out
+
+
+def finger_clearance(
+    model: mujoco.MjModel, data: mujoco.MjData, prism: PerceivedPrism
+) -> NDArray[np.float64]:
+    """(4,) smallest distance (m) of each finger's links, pads included, to ``prism`` (negative:
+    inside) for the kinematics in ``data``, order ff, mf, rf, th."""
+    frac = np.linspace(-1.0, 1.0, POINTS_PER_LINK)
+    out = np.full(len(robot.FINGERS), np.inf)
+    for finger, g in _finger_capsules(model):
+        axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+        radius, half = model.geom_size[g, 0], model.geom_size[g, 1]
+        pts = data.geom_xpos[g] + frac[:, None] * half * axis
+        f = robot.FINGERS.index(finger)
+        out[f] = min(out[f], float(prism.signed_distance(pts).min() - radius))
     return out
 
 
@@ -147,6 +165,15 @@ def link_penetration(
         depth = float((radius - prism.signed_distance(pts)).max())
         out[finger] = max(out[finger], depth)
     return out
+
+
+def fingertips_at(model: mujoco.MjModel, qpos: ArrayLike) -> NDArray[np.float64]:
+    """(4, 3) world fingertip positions (ff, mf, rf, th) of ``model`` at configuration ``qpos``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = np.asarray(qpos, dtype=float)
+    mujoco.mj_kinematics(model, data)
+    sites = [model.site(robot.qualified(s)).id for s in robot.FINGERTIP_SITES]
+    return data.site_xpos[sites].copy()
 
 
 def pad_normals(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
@@ -184,7 +211,8 @@ def check_reach(
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     start = np.asarray(world.data.qpos if qpos is None else qpos, dtype=float).copy()
-    gaps = np.linalg.norm(p[:, None] - p[None, :], axis=-1)
+    centres_at_contact = p + robot.PAD_RADIUS * n
+    gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
     gaps[np.diag_indices(len(p))] = np.inf
     spacing = float(gaps.min())
     tips, centres = grip_targets(p, n)
@@ -211,8 +239,8 @@ def check_reach(
     if check_spacing and spacing < MIN_PAD_SPACING:
         i, j = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
         reason = (
-            f"{robot.FINGERS[i]} and {robot.FINGERS[j]} contacts are {spacing * 1000:.0f} mm "
-            f"apart (two pads need {MIN_PAD_SPACING * 1000:.0f} mm)"
+            f"{robot.FINGERS[i]} and {robot.FINGERS[j]} pads would be {spacing * 1000:.0f} mm "
+            f"apart on their contacts (two pads need {MIN_PAD_SPACING * 1000:.0f} mm)"
         )
     elif not sol.reachable:
         worst = int(np.argmax(sol.tip_error))
@@ -316,13 +344,16 @@ def reachable_contacts(
     model: mujoco.MjModel | None = None,
     check_spacing: bool = True,
     tries: int = ASSIGNMENTS_TRIED,
+    qpos: ArrayLike | None = None,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
     fingertip's height), the first ``tries`` are checked with :func:`check_reach` and the first
-    the hand reaches is taken; when none is, the nearest one with its reason."""
+    the hand reaches is taken; when none is, the nearest one with its reason. ``qpos``: judge
+    from that configuration instead of the world's."""
     th = np.asarray(theta, dtype=float)
-    tips = world.fingertip_positions()
+    model = world.model if model is None else model
+    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
     table_z = prism.bottom
     xy, nxy, z = _contacts_for(target, th, tips, table_z)
     perms = np.array(list(itertools.permutations(range(len(th)))))
@@ -332,7 +363,13 @@ def reachable_contacts(
     for k in np.argsort(cost, kind="stable")[:tries]:
         contacts = _given(th, xy, nxy, z, perms[k])
         reach = check_reach(
-            world, prism, contacts.points, contacts.normals, model=model, check_spacing=check_spacing
+            world,
+            prism,
+            contacts.points,
+            contacts.normals,
+            model=model,
+            check_spacing=check_spacing,
+            qpos=qpos,
         )
         if reach.reachable:
             return contacts, reach

@@ -28,11 +28,14 @@ LIFT_TIME = 1.5
 SLIP_TOLERANCE = 0.01
 #: Carrying: largest joint speed (rad/s).
 CARRY_SPEED = 0.5
-#: Set-down: lowering speed (m/s), the furthest it lowers (m) and the share of the block's weight
-#: the table must take (from the wrist sensor) before the hand lets go.
+#: Set-down: lowering speed (m/s), the furthest it lowers (m), the share of the block's weight
+#: the table must take (from the wrist sensor) to count as supported, and how much further (m)
+#: the palm goes down once it does (the grip is stiff: the pads give a little before the table
+#: takes the whole weight).
 LOWER_SPEED = 0.02
 MAX_LOWER = 0.08
-SUPPORTED_SHARE = 0.6
+SUPPORTED_SHARE = 0.5
+SET_DOWN_PRESS = 0.003
 #: After the set-down the hand may push the block into the table (the arm's servos lag): the palm
 #: rises in steps (m) until the push is below the tolerance (N), at most MAX_UNLOAD (m).
 UNLOAD_STEP = 0.0005
@@ -189,7 +192,11 @@ def lower_until_supported(
     def supported(w: World) -> bool:
         return held_load(w, empty_hand_force) < (1.0 - SUPPORTED_SHARE) * before
 
-    move_palm(world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported)
+    touched = not move_palm(
+        world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported
+    )
+    if touched:
+        move_palm(world, checker, [0.0, 0.0, -SET_DOWN_PRESS], SET_DOWN_PRESS / speed, grip=grip)
     _hold(world, grip, SETTLE_TIME)
     # the arm's servos lag behind the lowering: take back any push into the table
     for _ in range(round(MAX_UNLOAD / UNLOAD_STEP)):

@@ -5,6 +5,7 @@ reason for the transition, or raises :class:`EpisodeFailure` with a named reason
 from __future__ import annotations
 
 from collections.abc import Callable
+from collections import deque
 from dataclasses import dataclass
 
 import cv2
@@ -60,6 +61,10 @@ ARM_MOVE_TIME = 1.0
 #: The held load must be at least this share of the perceived block's weight after the lift, and
 #: during the carry (wrist sensor), else the block slipped / was dropped.
 MIN_HELD_SHARE = 0.5
+#: A carried block counts as dropped when, over DROP_WINDOW control periods, the wrist sensor's
+#: mean load falls below DROP_SHARE of the block's expected weight, or fewer than two pads feel it.
+DROP_WINDOW = 15
+DROP_SHARE = 0.3
 #: Gravity (m/s^2) for the perceived block's expected weight.
 G = 9.81
 
@@ -321,38 +326,76 @@ def posture_control(ep: Episode) -> Step:
         return Step(
             State.WRENCH_CLOSURE, f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm"
         )
-    # contacts mode: make the virtual contacts reachable
-    contacts = ep.contacts
-    tips, centres = grip_targets(contacts.points, contacts.normals)
-    sol = solve_posture(
-        world,
-        tips,
-        joints="arm+hand",
-        model=ep.planning,
-        avoid_collisions=True,
-        touchable=PERCEIVED_GEOM,
-        pad_centres=centres,
-    )
-    if not sol.reachable:
+    # contacts mode: make the virtual contacts reachable, trying the wrist roll in steps
+    found = _reachable_posture(ep)
+    if found is None:
         if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
             raise EpisodeFailure(
                 Failure.CONTACT_UNREACHABLE,
-                f"after {ep.record.posture_retries} posture retries: "
-                f"{', '.join(sol.unreachable)} cannot reach",
+                f"after {ep.record.posture_retries} posture retries no arm posture reaches the "
+                f"contacts ({ep.reach.reason if ep.reach is not None else 'unreachable'})",
             )
-        return Step(State.WRENCH_CLOSURE, f"no posture reaches {', '.join(sol.unreachable)}")
-    # the hand's pre-contact posture at the new arm posture
-    qpos = world.data.qpos.copy()
+        return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
+    qpos, contacts, roll = found
+    ep.contacts = contacts
     m = world.model
-    qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]] = sol.arm_q
-    qpos[HandIndices.of(m).finger_qpos.ravel()] = sol.hand_q
+    arm_q = qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]]
     pre, pre_pads = grip_targets(contacts.points, contacts.normals, -PRE_CONTACT)
     hand_pre = solve_posture(
         world, pre, optimize=False, joints="hand", model=ep.planning, pad_centres=pre_pads, qpos=qpos
     ).hand_q
     _retract(ep)
-    _move_arm_and_hand(ep, sol.arm_q, hand_pre)
-    return Step(State.WRENCH_CLOSURE, "arm reconfigured so that the contacts are within reach")
+    _move_arm_and_hand(ep, arm_q, hand_pre)
+    return Step(
+        State.WRENCH_CLOSURE,
+        f"arm reconfigured (wrist roll {np.degrees(roll):+.0f} deg tried first) so that the "
+        "contacts are within reach",
+    )
+
+
+#: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
+#: differential IK finds the nearest posture, which may keep a finger on the wrong side.
+ROLL_SEEDS = (0.0, np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
+
+
+def _reachable_posture(ep: Episode):
+    """An arm and hand configuration (qpos) from which the current contacts are reachable, with
+    the contacts given to the fingers, and the roll seed it started from; None if none is."""
+    world = ep.world
+    m = world.model
+    roll_adr = m.jnt_qposadr[m.joint(robot.qualified("wrist_roll")).id]
+    arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    hand_adr = HandIndices.of(m).finger_qpos.ravel()
+    lo, hi = m.jnt_range[m.joint(robot.qualified("wrist_roll")).id]
+    for roll in ROLL_SEEDS:
+        seed = world.data.qpos.copy()
+        seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
+        contacts, _ = reachable_contacts(
+            world, ep.prism, ep.target, ep.synthesis.theta, model=ep.planning, qpos=seed, tries=1
+        )
+        tips, centres = grip_targets(contacts.points, contacts.normals)
+        sol = solve_posture(
+            world,
+            tips,
+            joints="arm+hand",
+            model=ep.planning,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+            pad_centres=centres,
+            qpos=seed,
+        )
+        if not sol.reachable:
+            continue
+        qpos = seed.copy()
+        qpos[arm_adr] = sol.arm_q
+        qpos[hand_adr] = sol.hand_q
+        contacts, reach = reachable_contacts(
+            world, ep.prism, ep.target, ep.synthesis.theta, model=ep.planning, qpos=qpos,
+            check_spacing=False,
+        )
+        if reach.reachable:
+            return qpos, contacts, roll
+    return None
 
 
 # --- Wrench Closure -----------------------------------------------------------------------------
@@ -372,6 +415,7 @@ def wrench_closure(ep: Episode) -> Step:
             start.theta,
             ep.rng,
             min_separation=MIN_PAD_SPACING + SEPARATION_MARGIN,
+            separation_offset=robot.PAD_RADIUS,
         )
     syn = ep.synthesis
     while True:
@@ -444,7 +488,9 @@ def grasp_object(ep: Episode) -> Step:
     _retract(ep)
     world.step(round(0.2 / world.model.opt.timestep))
     ep.empty_hand_force = world.wrist_wrench()[0]
-    ep.grip = plan_grip(world, contacts.points, contacts.normals, shares, model=ep.planning)
+    ep.grip = plan_grip(
+        world, contacts.points, contacts.normals, shares, model=ep.planning, prism=ep.prism
+    )
     move_hand(world, ep.grip.q_pre, PRESHAPE_TIME)
     closing = close(world, ep.grip)
     if not closing.all_touched:
@@ -498,9 +544,17 @@ def deliver(ep: Episode) -> Step:
     if not plan.found:
         raise EpisodeFailure(Failure.PLACE_UNREACHABLE, plan.reason)
 
+    loads: deque[float] = deque(maxlen=DROP_WINDOW)
+    lost: deque[bool] = deque(maxlen=DROP_WINDOW)
+
     def watch(w) -> None:
+        """Sensed, not judged: the wrist sensor's load (averaged over the window, the arm's
+        accelerations shake it) and the pads."""
         record.lift_clearance = max(record.lift_clearance, clearance_now(w))
-        if held_load(w, ep.empty_hand_force) < MIN_HELD_SHARE * ep.expected_load:
+        loads.append(held_load(w, ep.empty_hand_force))
+        lost.append(int((w.touch() > 0.0).sum()) < 2)
+        full = len(loads) == DROP_WINDOW
+        if full and (np.mean(loads) < DROP_SHARE * ep.expected_load or all(lost)):
             raise _Dropped
 
     try:

@@ -160,13 +160,16 @@ def _draw_place(
     footprints: list[np.ndarray],
     seed: object,
 ) -> tuple[float, float]:
-    """A point in reach where the target's footprint (at its current yaw) clears the others."""
+    """A point in reach where the target, at any yaw (the disc of its circumradius), clears the
+    others by ``min_gap``: the hand sets it down with its fingers around it."""
     others = [fp for b, fp in zip(blocks, footprints, strict=True) if b.name != target.name]
+    radius = float(np.linalg.norm(target.polygon.vertices, axis=1).max())
+    ring = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
     for _ in range(cfg.max_attempts):
         xy = _draw_point(cfg, rng)
-        fp = place_polygon(target.polygon.vertices, xy, target.yaw)
-        if not (_in_reach(cfg, xy) and cfg.table.contains(fp)):
+        disc = np.asarray(xy) + radius * np.column_stack([np.cos(ring), np.sin(ring)])
+        if not (_in_reach(cfg, xy) and cfg.table.contains(disc)):
             continue
-        if all(convex_polygon_distance(fp, o) >= cfg.min_gap for o in others):
+        if all(convex_polygon_distance(disc, o) >= cfg.min_gap for o in others):
             return float(xy[0]), float(xy[1])
     raise SceneError(f"random scene (seed {seed!r}): no free place point for {target.name!r}")

@@ -10,9 +10,10 @@ same contacts as ``run_trials`` from the same initial contacts and generator.
 
 One addition the robot needs and the paper's point contacts do not: ``min_separation``. A
 fingertip is a pad of finite size, and two contacts closer than two pads cannot both be taken;
-with ``min_separation`` > 0 every step is followed by a projection that pushes such pairs apart
-along the outline (:func:`separate_contacts`), a projected gradient descent on the same
-objective. With 0 (the default) the controller is the paper's.
+with ``min_separation`` > 0 every step is followed by a projection that keeps the pads' centres
+(``separation_offset`` outside the contacts) that far apart, pushing close contacts apart along
+the outline (:func:`separate_contacts`): a projected gradient descent on the same objective.
+With 0 (the default) the controller is the paper's.
 """
 
 from __future__ import annotations
@@ -40,17 +41,19 @@ SEPARATION_PASSES = 30
 
 
 def separate_contacts(
-    polygon: Polygon, theta: ArrayLike, min_distance: float
+    polygon: Polygon, theta: ArrayLike, min_distance: float, offset: float = 0.0
 ) -> NDArray[np.float64]:
-    """Contact coordinates ``theta`` (n,) with every pair of contact points at least
-    ``min_distance`` apart (polygon units), obtained by pushing close pairs apart along the
+    """Contact coordinates ``theta`` (n,) moved so that the points ``offset`` outside each
+    contact along its normal (a round fingertip's centre, for ``offset`` = its radius) are at
+    least ``min_distance`` apart (polygon units). Close pairs are pushed apart along the
     outline, each contact by half the shortfall (an arc of length s at distance r from the
     centroid spans at most s / r radians)."""
     th = np.asarray(theta, dtype=float).copy()
     n = len(th)
     for _ in range(SEPARATION_PASSES):
-        p = polygon.point_at(th)
-        r = np.maximum(np.linalg.norm(p, axis=1), 1e-12)
+        frames = polygon.locate(th)
+        p = frames.point + offset * frames.normal
+        r = np.maximum(np.linalg.norm(frames.point, axis=1), 1e-12)
         moved = False
         for i in range(n):
             for j in range(i + 1, n):
@@ -99,6 +102,7 @@ class GraspSynthesis:
         max_steps: int = MAX_STEPS,
         task: ArrayLike | None = None,
         min_separation: float = 0.0,
+        separation_offset: float = 0.0,
     ) -> None:
         theta = np.asarray(theta_initial, dtype=float).reshape(1, -1)
         if theta.shape[1] < 2 or not np.all(np.isfinite(theta)):
@@ -116,15 +120,20 @@ class GraspSynthesis:
         self.max_steps = int(max_steps)
         self.task = task
         self.min_separation = float(min_separation)
+        self.separation_offset = float(separation_offset)
         self._batch = PolygonBatch.of([polygon])
         self._index = np.zeros(1, dtype=np.int64)
         self._theta = wrap_angle(theta)
         if self.min_separation > 0:
-            self._theta = separate_contacts(polygon, self._theta[0], self.min_separation)[None]
+            self._theta = self._separate(self._theta)
         self.steps = 0
         self.converged = False
         self.composer.begin(1, rng)
         self._state = control_state(self._batch, self._index, self._theta, 0, self._active(), task)
+
+    def _separate(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        sep = separate_contacts(self.polygon, theta[0], self.min_separation, self.separation_offset)
+        return sep[None]
 
     def _active(self) -> NDArray[np.bool_]:
         return np.array([not self.done])
@@ -163,7 +172,7 @@ class GraspSynthesis:
         grad = self.composer.gradient(before, self.rng)
         theta = wrap_angle(self._theta - self.gain * grad)
         if self.min_separation > 0:
-            theta = separate_contacts(self.polygon, theta[0], self.min_separation)[None]
+            theta = self._separate(theta)
         moved = float(np.abs(wrap_angle(theta - self._theta)).max())
         self._theta = theta
         self.steps += 1
