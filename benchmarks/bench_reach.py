@@ -245,8 +245,9 @@ def _run(argv: Sequence[str] | None) -> int:
         help=f"blocks per random scene, 1..{MAX_RANDOM_BLOCKS}",
     )
     args = p.parse_args(argv)
+    scene = load_scene(args.scene)  # a bad scene is refused before any work
     bench_harmonic()
-    world = World.build(load_scene(args.scene))
+    world = World.build(scene)
     bench_grids(world, args.resolutions)
     bench_plan(world)
     bench_mink(world)

@@ -100,7 +100,8 @@ GRASP_CASES = [
     (["trials", "--object", "circle"], "unknown object 'circle'; valid:"),
     (["trials", "--controller", "magic"], "unknown controller 'magic'; valid: kb, pi, ql"),
     (["trials", "--controller", "ql", "--models", "{adir}"], "--models: {adir} holds no reproduce"),
-    (["trials", "--controller", "pi", "--models", "{tmp}/none"], "is not a folder"),
+    (["trials", "--controller", "pi", "--models", "{tmp}/none"], "there is no folder"),
+    (["trials", "--controller", "pi", "--models", "{afile}"], "is not a folder"),
     (["trials", "--bogus"], "unrecognized arguments: --bogus"),
     # score
     (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--task", "nan,0,0"], "argument --task"),

@@ -40,7 +40,9 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(tmp_path: Path) -> None:
+def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "run"
     reproduce(out, seed=1, config=TINY, progress=lambda _: None)  # an earlier, finished run
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -72,14 +74,11 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(tmp_path: Pa
     assert json.loads((out / "results.json").read_text()) == {"run": {"seed": 2, "finished": False}}
     assert (out / "ql_q.npy").read_bytes() != before["ql_q.npy"]
     assert (out / "pi_predictor.json").read_bytes() == before["pi_predictor.json"]
-    for ctrl in ("ql", "pi"):
-        r = subprocess.run(
-            [*GRASP, "trials", "--controller", ctrl, "--models", str(out), "--trials", "5"],
-            capture_output=True,
-            text=True,
-        )
-        assert r.returncode == 2 and r.stdout == ""
-        assert r.stderr.count("\n") == 1 and "(seed 2) did not finish" in r.stderr
+    for ctrl in ("ql", "pi"):  # in-process: the same command as a later shell call
+        argv = ["trials", "--controller", ctrl, "--models", str(out), "--trials", "5"]
+        assert grasp_cli.main(argv) == 2
+        r = capsys.readouterr()
+        assert r.out == "" and r.err.count("\n") == 1 and "(seed 2) did not finish" in r.err
 
 
 def test_interrupted_show_closes_its_recording(

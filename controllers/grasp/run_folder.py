@@ -58,6 +58,11 @@ def check_finished_run(folder: Path, flag: str = "models") -> int:
     ``flag``) when the folder holds no run, an unfinished one, or models of another run."""
     folder = Path(folder)
     again = f"run `{REPRODUCE} {folder}` again"
+    if not folder.exists():
+        raise RunFolderError(
+            f"{flag}: there is no folder {str(folder)!r}; run `{REPRODUCE} {folder}` first "
+            "(4-9 minutes on 2 cores)"
+        )
     if not folder.is_dir():
         raise RunFolderError(
             f"{flag}: {str(folder)!r} is not a folder; give the folder of a finished "
