@@ -70,7 +70,12 @@ class DemoResult:
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     """Parse and check the command line (numbers and the output folder), before any work."""
-    p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    p = cli.ArgumentParser(
+        prog=PROG,
+        description="Build a scene (table, prism blocks, arm and hand), let the blocks settle, "
+        "save the overhead image as DIR/overhead.png and record the arm moving through a few "
+        "targets to DIR/episode.rrd (open it with `rerun DIR/episode.rrd`).",
+    )
     p.add_argument("--scene", default="clutter3", help="scene name or .toml path")
     p.add_argument(
         "--seed",

@@ -206,7 +206,13 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> cli.ArgumentParser:
-    p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    p = cli.ArgumentParser(
+        prog=PROG,
+        description="The grasp controller of Coelho & Grupen on planar polygons: grasp trials, "
+        "the S_G score of contact points, Table 1, and every experiment of the paper. "
+        "`python -m controllers.grasp COMMAND --help` shows a command's flags. Bad input is one "
+        "line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     trials = cli.integer(1, MAX_TRIALS)
     gain = cli.number(0.0, MAX_GAIN, lo_open=True)
