@@ -16,13 +16,14 @@ ones that are not. Usage: ``.venv/bin/python -m benchmarks.arm_reach [--step 0.0
 
 from __future__ import annotations
 
-import argparse
 import sys
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from hand_sim import clitools as cli
 from hand_sim.resources import models_dir
 
 MODELS = models_dir()
@@ -147,9 +148,19 @@ def coverage(step: float) -> dict[str, NDArray[np.bool_]]:
     return result
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--step", type=float, default=0.05, help="grid spacing (m)")
+PROG = "python -m benchmarks.arm_reach"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    ap = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    ap.add_argument(
+        "--step", type=cli.number(0.01, 0.45), default=0.05, help="grid spacing, m, 0.01..0.45"
+    )
     args = ap.parse_args(argv)
     points = grid(args.step)
     result = coverage(args.step)

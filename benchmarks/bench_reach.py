@@ -10,7 +10,7 @@ Prints figures; asserts nothing.
 
 from __future__ import annotations
 
-import argparse
+import sys
 import time
 from collections.abc import Sequence
 
@@ -18,6 +18,7 @@ import mink
 import numpy as np
 
 from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.harmonic import ascend, solve_harmonic
 from controllers.posture import (
@@ -37,7 +38,9 @@ from controllers.reach import (
     plan_delivery,
     solve_goal,
 )
+from hand_sim import clitools as cli
 from hand_sim import robot
+from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
@@ -208,22 +211,51 @@ def bench_random(n_scenes: int, n_blocks: int) -> None:
     )
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scene", default="clutter3")
-    p.add_argument("--resolutions", type=int, nargs="+", default=[10, 14, 18])
-    p.add_argument("--random", type=int, default=0, help="also run this many random scenes")
-    p.add_argument("--blocks", type=int, default=4, help="blocks per random scene")
+PROG = "python -m benchmarks.bench_reach"
+#: Grid cells per joint axis of the 4-D c-space grid: resolution^4 cells are collision-checked.
+MAX_RESOLUTION = 24
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=(*cli.ERRORS, ReachError))
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    p.add_argument("--scene", default="clutter3", help="scene name or .toml file")
+    p.add_argument(
+        "--resolutions",
+        type=cli.integer(4, MAX_RESOLUTION),
+        nargs="+",
+        default=[10, 14, 18],
+        metavar="N",
+        help=f"c-space grid cells per joint, 4..{MAX_RESOLUTION}",
+    )
+    p.add_argument(
+        "--random",
+        type=cli.integer(0, 1000),
+        default=0,
+        help="also plan in this many random scenes (seeds 0, 1, ...)",
+    )
+    p.add_argument(
+        "--blocks",
+        type=cli.integer(1, MAX_RANDOM_BLOCKS),
+        default=4,
+        help=f"blocks per random scene, 1..{MAX_RANDOM_BLOCKS}",
+    )
     args = p.parse_args(argv)
+    scene = load_scene(args.scene)  # a bad scene is refused before any work
     bench_harmonic()
-    world = World.build(load_scene(args.scene))
+    world = World.build(scene)
     bench_grids(world, args.resolutions)
     bench_plan(world)
     bench_mink(world)
     bench_fine(world)
     if args.random > 0:
         bench_random(args.random, args.blocks)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

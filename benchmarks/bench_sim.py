@@ -6,7 +6,7 @@ Run: ``.venv/bin/python -m benchmarks.bench_sim [--scene clutter3] [--seconds 5]
 
 from __future__ import annotations
 
-import argparse
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hand_sim import clitools as cli
 from hand_sim.camera import OverheadCamera
 from hand_sim.recorder import Recorder
 from hand_sim.scene import load_scene
@@ -36,12 +37,29 @@ def time_calls(fn: Callable[[], object], n: int) -> float:
     return 1000.0 * float(np.median(times))
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scene", default="clutter3")
-    p.add_argument("--seconds", type=float, default=5.0, help="simulated seconds to time")
-    p.add_argument("--width", type=int, default=640)
-    p.add_argument("--height", type=int, default=480)
+PROG = "python -m benchmarks.bench_sim"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    p.add_argument("--scene", default="clutter3", help="scene name or .toml file")
+    p.add_argument(
+        "--seconds",
+        type=cli.number(0.0, 600.0, lo_open=True),
+        default=5.0,
+        help="simulated seconds to time, in (0, 600]",
+    )
+    p.add_argument(
+        "--width", type=cli.image_width, default=640, help="overhead render width, pixels"
+    )
+    p.add_argument(
+        "--height", type=cli.image_height, default=480, help="overhead render height, pixels"
+    )
     args = p.parse_args(argv)
 
     t0 = time.perf_counter()
@@ -95,7 +113,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         f"overhead render {args.width}x{args.height}: rgb {rgb_ms:.1f} ms, "
         f"depth {depth_ms:.1f} ms, segmentation {seg_ms:.1f} ms (median of {N_RENDERS})"
     )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

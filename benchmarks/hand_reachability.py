@@ -29,7 +29,6 @@ Usage: .venv/bin/python -m benchmarks.hand_reachability [--samples 6000] [--yaws
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from dataclasses import dataclass
@@ -40,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp import PAPER_OBJECTS, Polygon, grasp_score, paper_object
+from hand_sim import clitools as cli
 from hand_sim.resources import models_dir
 
 HAND_XML = models_dir() / "hand.xml"
@@ -447,12 +447,34 @@ def _cell(best: NDArray[np.float64], checked: str) -> str:
     return f"{best.min():8.3f} {np.median(best):7.3f} {np.mean(best <= 0.4):5.2f} {checked:>5s}"
 
 
+PROG = "python -m benchmarks.hand_reachability"
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--samples", type=int, default=4000, help="hand configurations sampled")
-    ap.add_argument("--yaws", type=int, default=12, help="relative block yaws per object")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--objects", nargs="*", default=list(PAPER_OBJECTS))
+    """Run the benchmark with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
+
+
+def _run(argv: list[str] | None) -> int:
+    ap = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    ap.add_argument(
+        "--samples",
+        type=cli.integer(10, 20_000),
+        default=4000,
+        help="hand configurations sampled, 10..20000",
+    )
+    ap.add_argument(
+        "--yaws", type=cli.integer(1, 360), default=12, help="relative block yaws per object"
+    )
+    ap.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    ap.add_argument(
+        "--objects",
+        nargs="+",
+        choices=PAPER_OBJECTS,
+        default=list(PAPER_OBJECTS),
+        metavar="OBJECT",
+        help=f"paper objects to check: {', '.join(PAPER_OBJECTS)}",
+    )
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()

@@ -15,6 +15,7 @@ dm_control names in entity paths (``arm/hand/palm`` -> ``arm.hand.palm``).
 
 from __future__ import annotations
 
+import os
 import uuid
 from collections import defaultdict
 from pathlib import Path
@@ -27,6 +28,7 @@ import rerun as rr
 from numpy.typing import ArrayLike, NDArray
 from rerun.chunk import RrdReader
 
+from controllers.grasp.files import temporary_name
 from hand_sim.errors import HandSimError
 
 if TYPE_CHECKING:
@@ -114,8 +116,11 @@ def geom_archetype(model: mujoco.MjModel, g: int) -> Any | None:
 
 class Recorder:
     """Writes one episode to ``path`` (``.rrd``). Use as a context manager: the file is flushed
-    and closed on exit, also when the body raises (the exception is logged as an ERROR event and
-    then propagates)."""
+    and closed on exit, also when the body raises or is interrupted by Ctrl-C (the exception is
+    logged as an ERROR event and then propagates).
+
+    The episode is written to a hidden temporary file beside ``path``, renamed to ``path`` when
+    the recorder closes: ``path`` only ever holds a complete, readable recording."""
 
     def __init__(
         self, path: str | Path, world: World | None = None, *, jpeg_quality: int = JPEG_QUALITY
@@ -125,10 +130,11 @@ class Recorder:
             raise HandSimError(f"recording path {self.path} must end in .rrd")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.jpeg_quality = jpeg_quality
+        self._partial = temporary_name(self.path)
         self._rec: rr.RecordingStream | None = rr.RecordingStream(
             APPLICATION_ID, recording_id=str(uuid.uuid4())
         )
-        self._rec.save(str(self.path))
+        self._rec.save(str(self._partial))
         self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._geometry_for: int | None = None
         self._moving: list[tuple[int, str]] = []  # (body id, entity path) of non-welded bodies
@@ -271,14 +277,18 @@ class Recorder:
 
     # --- lifetime --------------------------------------------------------------------------
     def close(self) -> None:
-        """Flush everything to the file and close it (idempotent)."""
+        """Flush everything to the file, close it and give it its name ``path`` (idempotent)."""
         if self._rec is not None:
             try:
                 self._flush_poses()
             finally:
                 rec, self._rec = self._rec, None
-                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-                rec.disconnect()
+                try:
+                    rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                    rec.disconnect()
+                finally:
+                    if self._partial.exists():
+                        os.replace(self._partial, self.path)
 
     def __enter__(self) -> Recorder:
         return self

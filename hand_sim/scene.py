@@ -230,11 +230,7 @@ def parse_block(source: str, index: int, raw: Any) -> BlockSpec:
             f.fail("shape", f"unknown shape {shape!r}; valid: {', '.join(PAPER_OBJECTS)}")
         polygon = paper_object(shape)
     else:
-        vertices = f.table["vertices"]
-        if not isinstance(vertices, list) or len(vertices) < 3:
-            f.fail(
-                "vertices", f"must be a list of at least 3 [x, y] pairs (metres), got {vertices!r}"
-            )
+        vertices = f.points("vertices", 3)
         try:
             polygon = Polygon.from_vertices(vertices, name=name)
         except GraspError as e:

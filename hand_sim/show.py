@@ -3,7 +3,11 @@
 Builds a scene (section 5's table of blocks, the arm and the hand), lets the blocks settle, saves
 the overhead image as ``DIR/overhead.png`` and records to ``DIR/episode.rrd`` the arm moving
 through a few joint targets (with the hand closing and opening), so the models can be inspected in
-the rerun viewer (``rerun DIR/episode.rrd``). Errors print one line on stderr and exit with 2.
+the rerun viewer (``rerun DIR/episode.rrd``). The overhead image is 1920x1440 pixels by default,
+the frame ``python -m vision --pick-pixel U,V`` reads pixels in.
+
+Errors print one line on stderr and exit with 2; Ctrl-C stops with one line and exit status 130,
+leaving a closed, readable recording of what ran (:mod:`hand_sim.clitools`).
 """
 
 from __future__ import annotations
@@ -18,12 +22,18 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.grasp.files import atomic_path
+from hand_sim import clitools as cli
+from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.camera import OverheadCamera
 from hand_sim.errors import HandSimError
+from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.recorder import Recorder
 from hand_sim.robot import ARM_JOINTS, FINGERS
-from hand_sim.scene import load_scene
+from hand_sim.scene import RANDOM_SCENE, load_scene
 from hand_sim.world import World
+
+PROG = "python -m hand_sim.show"
 
 #: Simulated seconds for the blocks to settle before the overhead picture.
 SETTLE_S = 0.5
@@ -42,7 +52,9 @@ ARM_WAYPOINTS: tuple[tuple[tuple[float, ...] | None, bool], ...] = (
 )
 #: Fraction of each hand joint's range used for the "closed" posture.
 HAND_CLOSE_FRACTION = 0.5
-EXIT_BAD_INPUT = 2
+#: Default overhead image size: the size ``python -m vision`` renders, so that a pixel read off
+#: ``overhead.png`` is the pixel ``--pick-pixel`` expects.
+DEFAULT_WIDTH, DEFAULT_HEIGHT = MAX_RENDER_WIDTH, MAX_RENDER_HEIGHT
 
 
 @dataclass(frozen=True)
@@ -57,16 +69,53 @@ class DemoResult:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m hand_sim.show", description=__doc__.splitlines()[0])
-    p.add_argument(
-        "--scene", default="clutter3", help="scene name or .toml path (default clutter3)"
+    """Parse and check the command line (numbers and the output folder), before any work."""
+    p = cli.ArgumentParser(
+        prog=PROG,
+        description="Build a scene (table, prism blocks, arm and hand), let the blocks settle, "
+        "save the overhead image as DIR/overhead.png and record the arm moving through a few "
+        "targets to DIR/episode.rrd (open it with `rerun DIR/episode.rrd`).",
     )
-    p.add_argument("--seed", type=int, default=None, help="seed of --scene random")
-    p.add_argument("--blocks", type=int, default=None, help="number of blocks of --scene random")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--width", type=int, default=640, help="overhead image width (px)")
-    p.add_argument("--height", type=int, default=480, help="overhead image height (px)")
-    return p.parse_args(argv)
+    p.add_argument("--scene", default="clutter3", help="scene name or .toml path")
+    p.add_argument(
+        "--seed",
+        type=cli.seed,
+        default=None,
+        help=f"seed of --scene random, 0..{cli.SEED_MAX} (default 0)",
+    )
+    p.add_argument(
+        "--blocks",
+        type=cli.integer(1, MAX_RANDOM_BLOCKS),
+        default=None,
+        help=f"number of blocks of --scene random, 1..{MAX_RANDOM_BLOCKS} (default 3)",
+    )
+    p.add_argument(
+        "--out",
+        type=cli.out_dir,
+        required=True,
+        metavar="DIR",
+        help="output folder: episode.rrd and overhead.png",
+    )
+    p.add_argument(
+        "--width",
+        type=cli.image_width,
+        default=DEFAULT_WIDTH,
+        help=f"overhead image width, pixels, 16..{MAX_RENDER_WIDTH}",
+    )
+    p.add_argument(
+        "--height",
+        type=cli.image_height,
+        default=DEFAULT_HEIGHT,
+        help=f"overhead image height, pixels, 16..{MAX_RENDER_HEIGHT}",
+    )
+    args = p.parse_args(argv)
+    if args.scene != RANDOM_SCENE:
+        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
+            if value is not None:
+                raise cli.CommandLineError(
+                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
+                )
+    return args
 
 
 def hand_posture(world: World, fraction: float) -> NDArray[np.float64]:
@@ -139,9 +188,8 @@ def log_state(world: World, rec: Recorder) -> None:
 def run_demo(args: argparse.Namespace) -> DemoResult:
     """Build, settle, photograph and record."""
     scene = load_scene(args.scene, seed=args.seed, blocks=args.blocks)
+    out: Path = cli.prepare_dir(args.out, "--out")
     world = World.build(scene)
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
     rrd, png = out / "episode.rrd", out / "overhead.png"
     dt = world.model.opt.timestep
     with OverheadCamera(world, args.width, args.height) as cam, Recorder(rrd, world) as rec:
@@ -153,8 +201,9 @@ def run_demo(args: argparse.Namespace) -> DemoResult:
             log_state(world, rec)
             watch.update(world)
         rgb = cam.rgb()
-        if not cv2.imwrite(str(png), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-            raise HandSimError(f"cannot write {png}")
+        with atomic_path(png) as tmp:
+            if not cv2.imwrite(str(tmp), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+                raise HandSimError(f"cannot write {png}")
         rec.log_image("overhead", rgb)
         rec.log_depth("overhead", cam.depth())
         home, open_hand = world.arm_targets(), world.hand_targets()
@@ -170,18 +219,21 @@ def run_demo(args: argparse.Namespace) -> DemoResult:
     return DemoResult(rrd, png, world.time, watch.max_block_shift, watch.min_fingertip_z)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def _run(argv: Sequence[str] | None) -> int:
     args = parse_args(argv)
-    try:
+    with cli.partial_results_in(args.out):
         r = run_demo(args)
-    except HandSimError as e:
-        print(f"hand_sim.show: {e}", file=sys.stderr)
-        return EXIT_BAD_INPUT
     print(
-        f"wrote {r.rrd} and {r.png}: {r.sim_time:.2f} s simulated, blocks moved at most "
-        f"{1000 * r.max_block_shift:.2f} mm, lowest fingertip at z = {r.min_fingertip_z:.3f} m"
+        f"wrote {r.rrd} and {r.png} ({args.width}x{args.height} pixels): {r.sim_time:.2f} s "
+        f"simulated, blocks moved at most {1000 * r.max_block_shift:.2f} mm, lowest fingertip "
+        f"at z = {r.min_fingertip_z:.3f} m"
     )
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the demo with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
 
 
 if __name__ == "__main__":

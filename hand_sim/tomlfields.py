@@ -19,8 +19,22 @@ def read_toml(path: Path) -> dict[str, Any]:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: not valid TOML: {e}") from e
+    except UnicodeDecodeError as e:
+        raise SceneError(
+            f"{path}: not UTF-8 text (byte {e.start}: {e.reason}); save the file as UTF-8"
+        ) from e
     except OSError as e:
         raise SceneError(f"{path}: cannot read: {e}") from e
+
+
+def _finite_number(x: object) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _short(value: object, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters (a message stays one readable line)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class TomlFields:
@@ -51,7 +65,7 @@ class TomlFields:
             return str(default)
         value = self.table[key]
         if not isinstance(value, str):
-            self.fail(key, f"must be a string, got {value!r}")
+            self.fail(key, f"must be a string, got {_short(value)}")
         return value
 
     def number(
@@ -62,12 +76,8 @@ class TomlFields:
                 self.fail(key, "missing (required)")
             return float(default)
         value = self.table[key]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
-            self.fail(key, f"must be a finite number, got {value!r}")
+        if not _finite_number(value):
+            self.fail(key, f"must be a finite number, got {_short(value)}")
         if not lo <= value <= hi:
             self.fail(key, f"{value!r} is out of range [{lo:g}, {hi:g}]")
         return float(value)
@@ -79,13 +89,27 @@ class TomlFields:
             return tuple(float(x) for x in default)
         value = self.table[key]
         ok = isinstance(value, list) and len(value) == n
+        ok = ok and all(_finite_number(x) for x in value)
+        if not ok:
+            self.fail(key, f"must be a list of {n} finite numbers, got {_short(value)}")
+        return tuple(float(x) for x in value)
+
+    def points(self, key: str, min_count: int) -> list[tuple[float, float]]:
+        """A list of at least ``min_count`` [x, y] pairs of finite numbers (required)."""
+        if key not in self.table:
+            self.fail(key, "missing (required)")
+        value = self.table[key]
+        ok = isinstance(value, list) and len(value) >= min_count
         ok = ok and all(
-            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-            for x in value
+            isinstance(p, list) and len(p) == 2 and all(_finite_number(x) for x in p) for p in value
         )
         if not ok:
-            self.fail(key, f"must be a list of {n} finite numbers, got {value!r}")
-        return tuple(float(x) for x in value)
+            self.fail(
+                key,
+                f"must be a list of at least {min_count} [x, y] pairs of finite numbers, "
+                f"got {_short(value)}",
+            )
+        return [(float(x), float(y)) for x, y in value]
 
     def pair(self, key: str, default: Sequence[float] | None = None) -> tuple[float, float]:
         """Two finite numbers, e.g. an (x, y) position in metres."""

@@ -106,6 +106,20 @@ def test_file_is_closed_and_readable_when_the_episode_raises(tmp_path: Path, wor
     assert got[f"/world/bodies/{world.scene.blocks[0].name}"]["Transform3D:translation"] == 1
 
 
+def test_path_holds_only_a_complete_recording_also_after_ctrl_c(
+    tmp_path: Path, world: World
+) -> None:
+    path = tmp_path / "ep.rrd"
+    with pytest.raises(KeyboardInterrupt), Recorder(path, world) as rec:
+        rec.log_world(world)
+        assert not path.exists()  # written under a temporary name until closed
+        assert len(list(tmp_path.iterdir())) == 1
+        raise KeyboardInterrupt
+    assert [p.name for p in tmp_path.iterdir()] == ["ep.rrd"]
+    assert "KeyboardInterrupt" in str(last_row(path, "/events", "TextLog:text"))
+    assert read_recording(path)[f"/world/bodies/{world.scene.blocks[0].name}"]
+
+
 def test_bad_input_is_refused(tmp_path: Path) -> None:
     with pytest.raises(HandSimError, match=r"must end in \.rrd"):
         Recorder(tmp_path / "x.txt")

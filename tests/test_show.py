@@ -76,4 +76,24 @@ def test_unknown_scene_is_one_line_on_stderr_and_exit_2(
 
 def test_bad_random_request_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--scene", "random", "--seed", "1", "--blocks", "99", "--out", str(tmp_path)]) == 2
-    assert "blocks must be" in capsys.readouterr().err
+    assert "argument --blocks: must be an integer from 1 to 12" in capsys.readouterr().err
+
+
+def test_overhead_png_is_in_the_frame_vision_picks_pixels_in() -> None:
+    """A pixel read off the default overhead.png is the pixel ``python -m vision --pick-pixel``
+    expects: same image size, same camera matrix and pose."""
+    from hand_sim.camera import OverheadCamera
+    from hand_sim.show import DEFAULT_HEIGHT, DEFAULT_WIDTH
+    from hand_sim.world import World
+    from vision import observation
+
+    assert (DEFAULT_WIDTH, DEFAULT_HEIGHT) == (
+        observation.DEFAULT_WIDTH,
+        observation.DEFAULT_HEIGHT,
+    )
+    world = World.build(load_scene("clutter3"))
+    with OverheadCamera(world, DEFAULT_WIDTH, DEFAULT_HEIGHT) as a:
+        K, pose = a.intrinsics, a.pose
+    with observation.overhead_camera(world) as b:
+        np.testing.assert_array_equal(K, b.intrinsics)
+        np.testing.assert_array_equal(pose, b.pose)

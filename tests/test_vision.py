@@ -3,6 +3,8 @@ checked against the scene's true footprints."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -165,7 +167,7 @@ def test_a_click_on_a_side_face_selects_its_block(nine: tuple[Scene, Observation
 def test_a_click_on_the_table_is_a_clear_error(nine: tuple[Scene, Observation]) -> None:
     scene, obs = nine
     table_px = obs.geometry.world_to_pixel([0.4, -0.4, scene.table.height])
-    with pytest.raises(NotABlockError, match=r"on the table.*blocks are at pixels"):
+    with pytest.raises(NotABlockError, match=r"on the table.*blocks in the 1280x960 image are at"):
         select(obs, pixel=table_px)
     with pytest.raises(NotABlockError, match="outside the 1280x960 image"):
         select(obs, pixel=(5000, 3))
@@ -327,3 +329,7 @@ def test_cli_models_a_named_block_and_refuses_a_table_click(
     assert vision_cli(["--scene", "clutter3", "--pick-pixel", "10,10"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "on the table" in err[0]
+    # the message lists the three blocks, by name, and not the parked arm's base at the image's
+    # left edge (its flat top is a plateau at block height, off the table)
+    listed = re.findall(r"\((\d+), (\d+)\)( \w+)?", err[0].split("are at pixels ")[1])
+    assert sorted(name.strip() for _, _, name in listed) == ["pentagon", "rectangle", "triangle"]

@@ -4,29 +4,32 @@ nearest a world point (``--near X,Y``).
 
     python -m vision --scene clutter3 --pick-pixel 960,720 [--overlay out.png]
 
+Pixels are (column, row) of the rendered image, 1920x1440 unless --width/--height say otherwise:
+the frame of the ``overhead.png`` that ``python -m hand_sim.show`` writes at its default size.
 Prints the model; errors are one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
+from controllers.grasp.files import atomic_path
+from hand_sim import clitools as cli
+from hand_sim.random_scene import MAX_RANDOM_BLOCKS
+from hand_sim.scene import RANDOM_SCENE, Scene, load_scene
+from vision.clitools import ERRORS, check_on_table, check_pixel
 from vision.errors import VisionError
 from vision.model import ObjectModel
 from vision.observation import DEFAULT_HEIGHT, DEFAULT_WIDTH, Observation, overhead_camera
 from vision.select import analyze
 
-
-def _pair(text: str, what: str) -> tuple[float, float]:
-    try:
-        a, b = (float(c) for c in text.split(","))
-    except ValueError as e:
-        raise VisionError(f"{what} must be two numbers 'a,b', got {text!r}") from e
-    return a, b
+PROG = "python -m vision"
+#: Image formats the overlay may be written as (OpenCV picks the format from the suffix).
+OVERLAY_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
 def describe(model: ObjectModel) -> str:
@@ -45,8 +48,9 @@ OVERLAY_COLOUR = (255, 0, 255)
 OVERLAY_REFERENCE_WIDTH = 640
 
 
-def write_overlay(path: str, obs: Observation, model: ObjectModel) -> None:
-    """The overhead image with the model's contour drawn on it (PNG)."""
+def write_overlay(path: str | Path, obs: Observation, model: ObjectModel) -> None:
+    """The overhead image with the model's contour drawn on it (PNG or JPEG, by the suffix),
+    written atomically."""
     import cv2
 
     img = np.ascontiguousarray(obs.rgb[:, :, ::-1])
@@ -68,53 +72,103 @@ def write_overlay(path: str, obs: Observation, model: ObjectModel) -> None:
         scale,
         cv2.LINE_AA,
     )
-    if not cv2.imwrite(path, img):
-        raise VisionError(f"could not write the overlay image {path!r}")
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise VisionError(f"could not write the overlay image {str(path)!r}")
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Parse the command line; every number is checked here (finite, in range)."""
+    p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
+    p.add_argument("--scene", default="clutter3", help="scene name or .toml file (hand_sim.scene)")
+    p.add_argument(
+        "--seed",
+        type=cli.seed,
+        default=None,
+        help=f"seed of --scene random, 0..{cli.SEED_MAX} (default 0)",
+    )
+    p.add_argument(
+        "--blocks",
+        type=cli.integer(1, MAX_RANDOM_BLOCKS),
+        default=None,
+        help=f"blocks of --scene random, 1..{MAX_RANDOM_BLOCKS} (default 3)",
+    )
+    how = p.add_mutually_exclusive_group(required=True)
+    how.add_argument(
+        "--pick-pixel",
+        type=cli.numbers(2, "U,V"),
+        metavar="U,V",
+        help="the mouse click: pixel (column, row) of the --width x --height image, e.g. 960,720",
+    )
+    how.add_argument("--name", help="the block's name in the scene")
+    how.add_argument(
+        "--near",
+        type=cli.numbers(2, "X,Y"),
+        metavar="X,Y",
+        help="a world point on the table (m): the block nearest to it, e.g. 0.1,-0.05",
+    )
+    p.add_argument(
+        "--width",
+        type=cli.image_width,
+        default=DEFAULT_WIDTH,
+        help=f"rendered image width, pixels, 16..{DEFAULT_WIDTH}",
+    )
+    p.add_argument(
+        "--height",
+        type=cli.image_height,
+        default=DEFAULT_HEIGHT,
+        help=f"rendered image height, pixels, 16..{DEFAULT_HEIGHT}",
+    )
+    p.add_argument(
+        "--overlay",
+        type=cli.out_file(*OVERLAY_SUFFIXES),
+        metavar="IMAGE",
+        help="write the image with the contour drawn (.png or .jpg)",
+    )
+    args = p.parse_args(argv)
+    if args.scene != RANDOM_SCENE:
+        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
+            if value is not None:
+                raise cli.CommandLineError(
+                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
+                )
+    if args.pick_pixel is not None:
+        check_pixel(args.pick_pixel, args.width, args.height, "--pick-pixel")
+    return args
+
+
+def _select(args: argparse.Namespace, scene: Scene) -> tuple[Observation, ObjectModel]:
+    from hand_sim.world import World
+
+    with overhead_camera(World.build(scene), args.width, args.height) as camera:
+        obs = Observation.capture(camera)
+    sel = analyze(obs, {b.name: b.position for b in scene.blocks})
+    if args.pick_pixel is not None:
+        return obs, sel.select_pixel(args.pick_pixel)
+    if args.name is not None:
+        return obs, sel.select_name(args.name)
+    return obs, sel.select_near(args.near)
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    args = parse_args(argv)
+    scene = load_scene(args.scene, seed=args.seed, blocks=args.blocks)
+    if args.near is not None:
+        check_on_table(args.near, scene.table, "--near")
+    if args.overlay is not None:
+        cli.prepare_file(args.overlay, "--overlay")
+    obs, model = _select(args, scene)
+    print(describe(model))
+    u, v = model.pixel_contour.mean(axis=0)
+    print(f"  in the {args.width}x{args.height} image: contour around pixel ({u:.0f}, {v:.0f})")
+    if args.overlay is not None:
+        write_overlay(args.overlay, obs, model)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m vision", description=__doc__.splitlines()[0])
-    p.add_argument("--scene", default="clutter3", help="scene name or file (hand_sim.scene)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the random scene")
-    p.add_argument("--blocks", type=int, default=None, help="blocks of the random scene")
-    how = p.add_mutually_exclusive_group(required=True)
-    how.add_argument("--pick-pixel", metavar="U,V", help="the mouse click: image pixel (u, v)")
-    how.add_argument("--name", help="the block's name in the scene")
-    how.add_argument("--near", metavar="X,Y", help="world point (m): the nearest block")
-    p.add_argument("--width", type=int, default=DEFAULT_WIDTH)
-    p.add_argument("--height", type=int, default=DEFAULT_HEIGHT)
-    p.add_argument("--overlay", metavar="PNG", help="write the image with the contour drawn")
-    a = p.parse_args(argv)
-    try:
-        from hand_sim.errors import HandSimError
-        from hand_sim.scene import load_scene
-        from hand_sim.world import World
-
-        try:
-            scene = load_scene(a.scene, seed=a.seed, blocks=a.blocks)
-            world = World.build(scene)
-            camera = overhead_camera(world, a.width, a.height)
-        except HandSimError as e:
-            raise VisionError(str(e)) from e
-        try:
-            obs = Observation.capture(camera)
-        finally:
-            camera.close()
-        positions = {b.name: b.position for b in scene.blocks}
-        sel = analyze(obs, positions)
-        if a.pick_pixel is not None:
-            model = sel.select_pixel(_pair(a.pick_pixel, "--pick-pixel"))
-        elif a.name is not None:
-            model = sel.select_name(a.name)
-        else:
-            model = sel.select_near(_pair(a.near, "--near"))
-        print(describe(model))
-        if a.overlay:
-            write_overlay(a.overlay, obs, model)
-    except VisionError as e:
-        print(f"python -m vision: {e}", file=sys.stderr)
-        return 2
-    return 0
+    """Run ``python -m vision`` with the command line ``argv``; returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=ERRORS)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,10 @@ Depth does the segmenting, colour only splits touching blocks:
 3. each connected top face is one block, unless its colour is cut by an edge across its interior
    (two blocks of different colours touching), then a watershed splits it;
 4. anything higher than a top face next to it (the arm) is an *occluder*: its outline is not a
-   block edge.
+   block edge;
+5. a flat face that touches the image border is not a block either: the table lies inside the
+   view, so such a face is off the table (the parked arm's base at the image's left edge) or only
+   partly seen; it is labelled an occluder.
 """
 
 from __future__ import annotations
@@ -172,6 +175,10 @@ def _split_by_colour(rgb: NDArray[np.uint8], comp: NDArray[np.bool_]) -> list[ND
     return parts
 
 
+def _touches_border(mask: NDArray[np.bool_]) -> bool:
+    return bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+
+
 def _fill_holes(mask: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """The mask with every hole filled (outer contours drawn solid)."""
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
@@ -193,6 +200,7 @@ def segment(obs: Observation, tolerance: float | None = None) -> Segmentation:
     z_med = cv2.medianBlur(np.nan_to_num(z, nan=-1.0).astype(np.float32), 3).astype(np.float64)
     z_med[~np.isfinite(z)] = np.nan
     regions: list[tuple[NDArray[np.bool_], float]] = []
+    off_table: list[NDArray[np.bool_]] = []
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
     z_raw = np.nan_to_num(z, nan=-1.0)
     g = obs.geometry
@@ -212,6 +220,9 @@ def segment(obs: Observation, tolerance: float | None = None) -> Segmentation:
             comp = _fill_holes((lab == i).astype(np.uint8)).astype(bool)
             for part in _split_by_colour(obs.rgb, comp):
                 if part.sum() >= min_pixels:
+                    if _touches_border(part):
+                        off_table.append(part)
+                        continue
                     top = part & (np.abs(z_raw - h) <= tolerance)
                     regions.append((part, float(np.median(z[top]))))
     regions.sort(key=lambda r: -int(r[0].sum()))
@@ -223,6 +234,9 @@ def segment(obs: Observation, tolerance: float | None = None) -> Segmentation:
             BlockRegion(k, mask, zt, (float(xs.mean()), float(ys.mean())), int(xs.size), bbox)
         )
     labels, occluder = _label_pixels(z_med, table_z, blocks)
+    for mask in off_table:
+        labels[mask] = -1
+        occluder |= mask
     return Segmentation(table_z, depth_sigma, tolerance, z, tuple(blocks), labels, occluder)
 
 

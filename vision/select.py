@@ -55,10 +55,12 @@ class Selection:
         )
 
     def _describe(self) -> str:
+        h, w = self.segmentation.labels.shape
         if not self.blocks:
-            return "no blocks were found in the image"
-        return "blocks are at pixels " + ", ".join(
-            f"({b.pixel_centroid[0]:.0f}, {b.pixel_centroid[1]:.0f})" for b in self.blocks
+            return f"no blocks were found in the {w}x{h} image"
+        return f"blocks in the {w}x{h} image are at pixels " + ", ".join(
+            f"({b.pixel_centroid[0]:.0f}, {b.pixel_centroid[1]:.0f})" + (f" {name}" if name else "")
+            for b, name in zip(self.blocks, self.names, strict=True)
         )
 
     def index_at_pixel(self, pixel: ArrayLike) -> int:

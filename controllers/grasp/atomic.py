@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
+from controllers.grasp.files import atomic_path
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.qlearning import (
     ALPHA,
@@ -31,6 +32,7 @@ from controllers.grasp.qlearning import (
     boltzmann_choice,
     temperature_schedule,
 )
+from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
 
 #: Angular sectors of the object surface (section 2.2.1: 12 bins of 30 degrees).
@@ -238,9 +240,13 @@ def evaluate_atomic(
 
 
 def save_atomic_q(q: NDArray[np.float64], path: Path) -> None:
-    """Write the atomic Q-table as gzip-compressed .npy (mtime 0: byte-for-byte reproducible)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as raw, gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as f:
+    """Write the atomic Q-table as gzip-compressed .npy (mtime 0: byte-for-byte reproducible),
+    atomically."""
+    with (
+        atomic_path(path) as tmp,
+        open(tmp, "wb") as raw,
+        gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as f,
+    ):
         np.save(f, np.ascontiguousarray(q, dtype=np.float64))
 
 
@@ -248,10 +254,7 @@ def load_atomic_q(path: Path) -> NDArray[np.float64]:
     """Read a table written by :func:`save_atomic_q`."""
     path = Path(path)
     if not path.is_file():
-        raise ModelNotTrainedError(
-            f"no atomic-action Q-table at {path}: train it with "
-            f"`python -m controllers.grasp reproduce --out {path.parent}`"
-        )
+        raise ModelNotTrainedError(f"no atomic-action Q-table at {path}: {TRAIN_HINT}")
     with gzip.open(path, "rb") as f:
         q = np.load(f)
     if q.shape != (N_STATES, N_ACTIONS):

@@ -1,54 +1,87 @@
 """Command line of the grasp core: ``python -m controllers.grasp {trials,score,table1,reproduce}``.
 
 Results go to stdout as one-line summaries and, with ``--json``, to a JSON file other programs can
-check. Bad input is one line on stderr and exit status 2.
+check. Bad input is one line on stderr and exit status 2 (:mod:`controllers.grasp.clitools`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from controllers.grasp.errors import GraspError, PolygonError
+from controllers.grasp import clitools as cli
+from controllers.grasp.errors import PolygonError
 from controllers.grasp.experiments import (
     PAPER_TABLE1_AVERAGE,
     PAPER_TABLE1_KB,
     table1_rows,
     trial_summary,
 )
+from controllers.grasp.files import write_text
 from controllers.grasp.objects import PAPER_LABELS, PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import Polygon, centroid_of, parse_points
-from controllers.grasp.registry import COMPOSERS, DEFAULT_MODEL_DIR, make_composer
+from controllers.grasp.registry import COMPOSERS, make_composer
+from controllers.grasp.run_folder import check_finished_run
 from controllers.grasp.score import grasp_score
 from controllers.grasp.trials import GAIN, MAX_STEPS, N_CONTACTS, PolygonBatch, run_trials
 
+PROG = "python -m controllers.grasp"
 #: A contact point given to ``score`` may be this far (fraction of the diameter) off the outline.
 ON_BOUNDARY_TOLERANCE = 0.01
+#: Command-line limits. Trials: about 700/s, so the largest run takes a few minutes; contacts: a
+#: four-fingered hand needs 4, the planar controllers work for any number >= 2; the gain has no
+#: natural upper bound (the README's gain study goes to 1.0), 10 only refuses typing mistakes.
+MAX_TRIALS = 100_000
+MAX_CONTACTS = 16
+MAX_STEPS_LIMIT = 10_000
+MAX_GAIN = 10.0
+#: Task wrench components (unit-moment frame, in units of the unit contact force).
+MAX_TASK = 1e6
+#: Controllers that read trained models from ``--models``.
+LEARNED = ("ql", "pi")
+
+
+def _user_polygon(text: str, flag: str) -> tuple[np.ndarray, Polygon]:
+    """The vertices written in ``text`` and their polygon; errors name ``flag``."""
+    raw = parse_points(text, what=flag)
+    try:
+        return raw, Polygon.from_vertices(raw, name="user")
+    except PolygonError as e:
+        raise PolygonError(f"{flag}: {e}") from e
 
 
 def _polygon_arg(args: argparse.Namespace) -> Polygon:
-    if args.polygon:
-        return Polygon.from_vertices(parse_points(args.polygon), name="user")
+    if args.polygon is not None:
+        return _user_polygon(args.polygon, "--polygon")[1]
     return paper_object(args.object)
 
 
-def _write_json(path: str | None, payload: dict) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(json.dumps(payload, indent=1))
+def _prepare_json(args: argparse.Namespace) -> None:
+    """Check, before the work starts, that the ``--json`` file can be written."""
+    if args.json is not None:
+        cli.prepare_file(args.json, "--json")
+
+
+def _write_json(path: Path | None, payload: dict) -> None:
+    if path is not None:
+        write_text(path, json.dumps(payload, indent=1) + "\n")
 
 
 def cmd_trials(args: argparse.Namespace) -> int:
     poly = _polygon_arg(args)
     if args.rotate:
         poly = poly.rotated(np.deg2rad(args.rotate))
-    composer = make_composer(args.controller, Path(args.models), gain=args.gain)
+    if args.models is not None and args.controller in LEARNED:
+        check_finished_run(args.models, "--models")
+        composer = make_composer(args.controller, args.models, gain=args.gain)
+    else:
+        composer = make_composer(args.controller, gain=args.gain)
+    _prepare_json(args)
     rng = np.random.default_rng(args.seed)
     batch = PolygonBatch.of([poly])
     start = time.perf_counter()
@@ -100,10 +133,9 @@ def cmd_trials(args: argparse.Namespace) -> int:
 
 
 def cmd_score(args: argparse.Namespace) -> int:
-    raw = parse_points(args.polygon)
-    poly = Polygon.from_vertices(raw, name="user")
+    raw, poly = _user_polygon(args.polygon, "--polygon")
     centroid = centroid_of(raw)
-    points = parse_points(args.points, what="points") - centroid
+    points = parse_points(args.points, what="--points") - centroid
     theta = poly.theta_of(points)
     frames = poly.locate(theta)
     off = np.linalg.norm(frames.point - points, axis=1)
@@ -111,14 +143,16 @@ def cmd_score(args: argparse.Namespace) -> int:
     if bad.size:
         i = int(bad[0])
         raise PolygonError(
-            f"point {i} {tuple(float(c) for c in points[i] + centroid)} "
+            f"--points: point {i} {tuple(float(c) for c in points[i] + centroid)} "
             f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
         )
+    _prepare_json(args)
     scale = 1.0 / poly.max_moment
-    task = None if args.task is None else [float(x) for x in args.task.split(",")]
+    task = None if args.task is None else list(args.task)
     score = grasp_score(frames.point * scale, frames.normal, task)
     if score.feasible:
-        print(f"S_G = {score.s_g:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
+        shown = round(score.s_g, 4) + 0.0  # + 0.0: the LP's -1e-12 prints as 0.0000, not -0.0000
+        print(f"S_G = {shown:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
     else:
         print("infeasible: no contact forces satisfy the constraints (a failure)")
     _write_json(
@@ -135,6 +169,7 @@ def cmd_score(args: argparse.Namespace) -> int:
 
 
 def cmd_table1(args: argparse.Namespace) -> int:
+    _prepare_json(args)
     start = time.perf_counter()
     rows = table1_rows(args.trials, args.seed, gain=args.gain)
     elapsed = time.perf_counter() - start
@@ -158,82 +193,151 @@ def cmd_table1(args: argparse.Namespace) -> int:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from controllers.grasp.reproduce import ReproduceConfig, reproduce
 
+    cli.prepare_dir(args.out, "--out")
     cfg = ReproduceConfig.quick_run() if args.quick else ReproduceConfig.paper()
-    res = reproduce(Path(args.out), seed=args.seed, config=cfg)
+    with cli.partial_results_in(args.out):
+        res = reproduce(args.out, seed=args.seed, config=cfg)
     avg = {k: f"{v['average_failure']:.2f}" for k, v in res["table2"].items()}
     print(
         f"average failure (%): kb {avg['kb']}, ql {avg['ql']}, pi {avg['pi']}, "
-        f"pi (5 objects) {avg['pi5']}; report: {Path(args.out) / 'report.md'}"
+        f"pi (5 objects) {avg['pi5']}; report: {args.out / 'report.md'}"
     )
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="python -m controllers.grasp", description=__doc__.splitlines()[0]
+def build_parser() -> cli.ArgumentParser:
+    p = cli.ArgumentParser(
+        prog=PROG,
+        description="The grasp controller of Coelho & Grupen on planar polygons: grasp trials, "
+        "the S_G score of contact points, Table 1, and every experiment of the paper. "
+        "`python -m controllers.grasp COMMAND --help` shows a command's flags. Bad input is one "
+        "line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
     )
-    sub = p.add_subparsers(dest="command", required=True)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    trials = cli.integer(1, MAX_TRIALS)
+    gain = cli.number(0.0, MAX_GAIN, lo_open=True)
+    gain_help = f"gradient step, rad per unit gradient, in (0, {MAX_GAIN:g}]"
 
-    t = sub.add_parser("trials", help="run grasp trials on one object")
+    t = sub.add_parser(
+        "trials",
+        help="run grasp trials on one object",
+        description="run grasp trials on one object",
+    )
     t.add_argument("--object", default="square", help=f"paper object: {', '.join(PAPER_OBJECTS)}")
-    t.add_argument("--polygon", help="your own convex polygon 'x,y;x,y;...' (overrides --object)")
+    t.add_argument(
+        "--polygon",
+        metavar="X,Y;X,Y;...",
+        help="your own convex polygon, any unit (overrides --object); quote it, and write "
+        'negative values as they are: --polygon "-1,-1;1,-1;0,1"',
+    )
     t.add_argument("--controller", default="kb", help=f"composer: {', '.join(COMPOSERS)}")
-    t.add_argument("--trials", type=_positive_int, default=200)
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--contacts", type=_contacts, default=N_CONTACTS)
-    t.add_argument("--rotate", type=float, default=0.0, help="rotate the object by DEG degrees")
-    t.add_argument("--max-steps", type=_positive_int, default=MAX_STEPS)
-    t.add_argument("--gain", type=float, default=GAIN, help="gradient step (rad per unit gradient)")
-    t.add_argument("--models", default=str(DEFAULT_MODEL_DIR), help="directory of trained models")
-    t.add_argument("--json", help="write per-trial results and the summary to this JSON file")
+    t.add_argument("--trials", type=trials, default=200, help=f"number of trials, 1..{MAX_TRIALS}")
+    t.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    t.add_argument(
+        "--contacts",
+        type=cli.integer(2, MAX_CONTACTS),
+        default=N_CONTACTS,
+        help=f"contacts per grasp, 2..{MAX_CONTACTS}",
+    )
+    t.add_argument(
+        "--rotate",
+        type=cli.number(-360.0, 360.0),
+        default=0.0,
+        metavar="DEG",
+        help="rotate the object by DEG degrees, -360..360",
+    )
+    t.add_argument(
+        "--max-steps",
+        type=cli.integer(1, MAX_STEPS_LIMIT),
+        default=MAX_STEPS,
+        help=f"control steps per trial, 1..{MAX_STEPS_LIMIT}",
+    )
+    t.add_argument("--gain", type=gain, default=GAIN, help=gain_help)
+    t.add_argument(
+        "--models",
+        type=Path,
+        metavar="DIR",
+        help="folder of a finished `reproduce --out DIR` run whose models --controller ql|pi use",
+    )
+    t.add_argument(
+        "--json",
+        type=cli.out_file(".json"),
+        metavar="FILE",
+        help="write per-trial results and the summary here",
+    )
     t.set_defaults(func=cmd_trials)
 
-    s = sub.add_parser("score", help="grasp score S_G (Eq. 13) of contact points on a polygon")
-    s.add_argument("--polygon", required=True, help="convex polygon 'x,y;x,y;...'")
-    s.add_argument("--points", required=True, help="contact points on its outline 'x,y;x,y;...'")
-    s.add_argument("--task", help="task wrench 'fx,fy,mz' (default: null grasp)")
-    s.add_argument("--json", help="write the result to this JSON file")
+    s = sub.add_parser(
+        "score",
+        help="grasp score S_G (Eq. 13) of contact points on a polygon",
+        description="grasp score S_G (Eq. 13) of contact points on a polygon",
+    )
+    s.add_argument(
+        "--polygon", required=True, metavar="X,Y;X,Y;...", help="convex polygon, any unit"
+    )
+    s.add_argument(
+        "--points", required=True, metavar="X,Y;X,Y;...", help="contact points on its outline"
+    )
+    s.add_argument(
+        "--task",
+        type=cli.numbers(3, "FX,FY,MZ", -MAX_TASK, MAX_TASK),
+        metavar="FX,FY,MZ",
+        help="task wrench in the unit-moment frame (default: the null grasp, 0,0,0)",
+    )
+    s.add_argument(
+        "--json",
+        type=cli.out_file(".json"),
+        metavar="FILE",
+        help="write the result to this JSON file",
+    )
     s.set_defaults(func=cmd_score)
 
-    tb = sub.add_parser("table1", help="knowledge-based column of Table 1 beside the paper's")
-    tb.add_argument("--trials", type=_positive_int, default=200)
-    tb.add_argument("--seed", type=int, default=0)
-    tb.add_argument("--gain", type=float, default=GAIN)
-    tb.add_argument("--json", help="write the rows to this JSON file")
+    tb = sub.add_parser(
+        "table1",
+        help="knowledge-based column of Table 1 beside the paper's",
+        description="knowledge-based column of Table 1 beside the paper's",
+    )
+    tb.add_argument(
+        "--trials", type=trials, default=200, help=f"trials per object, 1..{MAX_TRIALS}"
+    )
+    tb.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    tb.add_argument("--gain", type=gain, default=GAIN, help=gain_help)
+    tb.add_argument(
+        "--json",
+        type=cli.out_file(".json"),
+        metavar="FILE",
+        help="write the rows to this JSON file",
+    )
     tb.set_defaults(func=cmd_table1)
 
     r = sub.add_parser(
-        "reproduce", help="train and test every learned controller; write report, figures, models"
+        "reproduce",
+        help="train and test every learned controller; write report, figures, models",
+        description="Every experiment of the paper (Tables 1-2, section 2, Appendix A, figures): "
+        "train and test every learned controller and write report.md, results.json, the figures "
+        "and the trained models into --out. About 4-9 minutes on 2 cores (--quick: under one).",
     )
     r.add_argument(
-        "--out", required=True, help="output directory (report.md, results.json, PNGs, models)"
+        "--out",
+        required=True,
+        type=cli.out_dir,
+        metavar="DIR",
+        help="output folder (report.md, results.json, PNGs, models); a finished run is marked "
+        "in results.json",
     )
     r.add_argument(
         "--quick", action="store_true", help="reduced sizes for CI (well under a minute)"
     )
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
     r.set_defaults(func=cmd_reproduce)
     return p
 
 
-def _positive_int(text: str) -> int:
-    v = int(text)
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return v
-
-
-def _contacts(text: str) -> int:
-    v = int(text)
-    if v < 2:
-        raise argparse.ArgumentTypeError(f"a grasp needs at least 2 contacts, got {text}")
-    return v
+def _run(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args.func(args))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args))
-    except (GraspError, ValueError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)

@@ -22,3 +22,7 @@ class UnknownNameError(GraspError, KeyError):
 
 class ModelNotTrainedError(GraspError, FileNotFoundError):
     """A learned controller was asked for before its model file was trained."""
+
+
+class RunFolderError(GraspError, ValueError):
+    """A folder given for trained models does not hold one finished ``reproduce`` run."""

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.grasp.files import atomic_path
 from controllers.grasp.polygon import Polygon
 
 #: Colours (BGR) of plotted series, in order.
@@ -317,8 +318,8 @@ def square_activation_inset(
 
 
 def save_png(path: Path, img: NDArray[np.uint8]) -> None:
-    """Write a PNG (deterministic bytes for the same image)."""
+    """Write a PNG (deterministic bytes for the same image), atomically."""
     cv2 = _cv2()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), img):
-        raise OSError(f"could not write {path}")
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise OSError(f"could not write {path}")

@@ -21,6 +21,15 @@ from controllers.grasp.errors import PolygonError
 RELATIVE_TOLERANCE = 1e-9
 #: Minimum area, relative to the squared diameter, of an acceptable polygon.
 MIN_RELATIVE_AREA = 1e-6
+#: Limits on user polygons, in the unit of their coordinates (any unit: metres in the simulator):
+#: coordinates within +-MAX_COORDINATE, at least MIN_EXTENT across, at most MAX_VERTICES vertices
+#: (the self-intersection test compares every pair of edges).
+MAX_COORDINATE = 1e6
+MIN_EXTENT = 1e-9
+MAX_VERTICES = 256
+#: A polygon may lie at most this many times its size from the origin: float64 coordinates carry
+#: about 16 digits, so a tiny polygon far away has too few left for its shape.
+MAX_OFFSET_RATIO = 1e5
 
 
 class ContactFrames(NamedTuple):
@@ -67,20 +76,75 @@ def locate_contacts(
 def _as_vertex_array(vertices: ArrayLike) -> NDArray[np.float64]:
     try:
         v = np.array(vertices, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise PolygonError(f"polygon vertices must be numbers, got {vertices!r}") from e
+    except (TypeError, ValueError, OverflowError) as e:
+        raise PolygonError(f"polygon vertices must be numbers, got {_short(vertices)}") from e
     if v.ndim != 2 or v.shape[1] != 2:
         raise PolygonError(f"polygon vertices must be a list of (x, y) pairs, got shape {v.shape}")
     if v.shape[0] < 3:
         raise PolygonError(f"a polygon needs at least 3 vertices, got {v.shape[0]}")
+    if v.shape[0] > MAX_VERTICES:
+        raise PolygonError(f"a polygon may have at most {MAX_VERTICES} vertices, got {v.shape[0]}")
     if not np.all(np.isfinite(v)):
         raise PolygonError("polygon vertices must be finite numbers (found NaN or inf)")
+    if np.abs(v).max() > MAX_COORDINATE:
+        raise PolygonError(
+            f"polygon coordinates must be within +-{MAX_COORDINATE:g}, got {np.abs(v).max():g}; "
+            "choose a unit that keeps them smaller"
+        )
     return v
+
+
+def _short(value: object, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _orientation(p: NDArray, q: NDArray, r: NDArray) -> NDArray[np.float64]:
+    """Twice the signed area of triangles (p, q, r): > 0 when r is left of p -> q."""
+    return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (
+        r[..., 0] - p[..., 0]
+    )
+
+
+def _first_crossing(u: NDArray[np.float64], tol: float) -> tuple[int, int] | None:
+    """The first pair of non-adjacent edges (i, j) of the closed outline ``u`` that cross or
+    touch (orientation tests with tolerance ``tol``; collinear edges by their overlap)."""
+    k = len(u)
+    i, j = np.triu_indices(k, 2)
+    keep = ~((i == 0) & (j == k - 1))  # the last edge is adjacent to the first
+    i, j = i[keep], j[keep]
+    a, b = u, np.roll(u, -1, axis=0)
+
+    def side(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.where(np.abs(x) <= tol, 0.0, np.sign(x))
+
+    s1, s2 = side(_orientation(a[j], b[j], a[i])), side(_orientation(a[j], b[j], b[i]))
+    s3, s4 = side(_orientation(a[i], b[i], a[j])), side(_orientation(a[i], b[i], b[j]))
+    collinear = (s1 == 0) & (s2 == 0) & (s3 == 0) & (s4 == 0)
+    meet = (s1 * s2 <= 0) & (s3 * s4 <= 0) & ~collinear
+    d = b[i] - a[i]
+    t_c = np.einsum("ij,ij->i", a[j] - a[i], d)
+    t_d = np.einsum("ij,ij->i", b[j] - a[i], d)
+    length2 = np.einsum("ij,ij->i", d, d)
+    overlap = collinear & (np.maximum(t_c, t_d) >= -tol) & (np.minimum(t_c, t_d) <= length2 + tol)
+    hit = np.flatnonzero(meet | overlap)
+    return (int(i[hit[0]]), int(j[hit[0]])) if hit.size else None
 
 
 def centroid_of(vertices: ArrayLike) -> NDArray[np.float64]:
     """Area centroid of a polygon given by its vertices (any orientation)."""
     return _signed_area_and_centroid(_as_vertex_array(vertices))[1]
+
+
+def _centroid_of_checked(v: NDArray[np.float64], size: float) -> NDArray[np.float64]:
+    """Area centroid of a checked polygon. The shoelace sums lose precision on coordinates far
+    from the origin (terms of offset^2 cancel), so a polygon farther than 10 times its size is
+    shifted to its vertex mean first; nearer ones (all in the simulator) are not, which keeps
+    their results bit for bit."""
+    if float(np.abs(v).max()) <= 10.0 * size:
+        return _signed_area_and_centroid(v)[1]
+    mean = v.mean(axis=0)
+    return mean + _signed_area_and_centroid(v - mean)[1]
 
 
 def _signed_area_and_centroid(v: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
@@ -125,32 +189,60 @@ class Polygon:
     def from_vertices(cls, vertices: ArrayLike, name: str = "polygon") -> Polygon:
         """Check ``vertices`` (any orientation) and return the CCW polygon centred on its centroid.
 
-        Raises :class:`PolygonError` for fewer than 3 vertices, non-finite values, repeated
-        vertices, zero area, a non-convex or a self-intersecting outline.
+        Raises :class:`PolygonError` for fewer than 3 or more than MAX_VERTICES vertices,
+        non-finite or too large values, repeated vertices, collinear vertices, a self-intersecting,
+        a too thin or a non-convex outline. The checks run on a copy scaled to unit size, so they
+        do not depend on the unit.
         """
         v = _as_vertex_array(vertices)
         size = float(np.ptp(v, axis=0).max())
         if size <= 0.0:
             raise PolygonError(f"polygon {name!r} has zero area: all vertices coincide")
-        edges = np.roll(v, -1, axis=0) - v
-        short = np.linalg.norm(edges, axis=1) <= RELATIVE_TOLERANCE * size
+        if size < MIN_EXTENT:
+            raise PolygonError(
+                f"polygon {name!r} is {size:g} across, less than {MIN_EXTENT:g}: choose a unit "
+                "that makes it larger"
+            )
+        offset = float(np.abs(v).max())
+        if offset > MAX_OFFSET_RATIO * size:
+            raise PolygonError(
+                f"polygon {name!r} is {size:g} across but {offset:g} from the origin: give its "
+                f"coordinates relative to a nearby point (at most {MAX_OFFSET_RATIO:g} times its "
+                "size away)"
+            )
+        u = (v - v.mean(axis=0)) / size  # unit size: tolerances below are relative
+        edges = np.roll(u, -1, axis=0) - u
+        short = np.linalg.norm(edges, axis=1) <= RELATIVE_TOLERANCE
         if np.any(short):
             i = int(np.flatnonzero(short)[0])
             raise PolygonError(
                 f"polygon {name!r} repeats vertex {i} ({v[i, 0]:g}, {v[i, 1]:g}): remove duplicates"
             )
-        area, centroid = _signed_area_and_centroid(v)
-        if abs(area) <= MIN_RELATIVE_AREA * size**2:
-            raise PolygonError(f"polygon {name!r} has zero area (its vertices are collinear)")
+        spread = np.linalg.svd(u - u.mean(axis=0), compute_uv=False)
+        if spread[-1] <= RELATIVE_TOLERANCE * spread[0]:
+            raise PolygonError(f"polygon {name!r} has zero area: its vertices are collinear")
+        crossing = _first_crossing(u, RELATIVE_TOLERANCE)
+        if crossing is not None:
+            raise PolygonError(
+                f"polygon {name!r} is self-intersecting: edges {crossing[0]} and {crossing[1]} "
+                "cross or touch; give the vertices in order around the outline"
+            )
+        area = _signed_area_and_centroid(u)[0]
+        if abs(area) <= MIN_RELATIVE_AREA:
+            raise PolygonError(
+                f"polygon {name!r} has (nearly) zero area: it is a sliver, its vertices nearly "
+                "collinear"
+            )
+        centroid = _centroid_of_checked(v, size)
         if area < 0.0:
-            v = v[::-1].copy()
-            edges = np.roll(v, -1, axis=0) - v
+            v, u = v[::-1].copy(), u[::-1].copy()
+            edges = np.roll(u, -1, axis=0) - u
         turn = (
             edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1]
             - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
         )
-        if np.any(turn < -RELATIVE_TOLERANCE * size**2):
-            i = int((np.flatnonzero(turn < -RELATIVE_TOLERANCE * size**2)[0] + 1) % len(v))
+        if np.any(turn < -RELATIVE_TOLERANCE):
+            i = int((np.flatnonzero(turn < -RELATIVE_TOLERANCE)[0] + 1) % len(v))
             raise PolygonError(
                 f"polygon {name!r} is not convex at vertex {i} ({v[i, 0]:g}, {v[i, 1]:g}); "
                 "graspsim grasps convex polygons only (give the convex hull)"
@@ -203,6 +295,8 @@ class Polygon:
 
     def rotated(self, angle: float) -> Polygon:
         """The copy rotated by ``angle`` radians about the centroid."""
+        if not np.isfinite(angle):
+            raise PolygonError(f"rotation angle must be a finite number, got {angle!r}")
         c, s = np.cos(angle), np.sin(angle)
         return Polygon(vertices=self.vertices @ np.array([[c, s], [-s, c]]), name=self.name)
 
@@ -241,9 +335,15 @@ def parse_points(text: str, what: str = "polygon") -> NDArray[np.float64]:
             tuple(float(c) for c in part.split(",")) for part in text.strip().strip(";").split(";")
         ]
     except ValueError as e:
-        raise PolygonError(f"{what} must be written 'x,y;x,y;...', got {text!r}") from e
+        raise PolygonError(f"{what} must be written 'x,y;x,y;...', got {_short(text)}") from e
     if any(len(r) != 2 for r in rows):
         raise PolygonError(
-            f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {text!r}"
+            f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {_short(text)}"
         )
-    return np.array(rows, dtype=float)
+    points = np.array(rows, dtype=float)
+    if not np.all(np.isfinite(points)) or np.abs(points).max() > MAX_COORDINATE:
+        raise PolygonError(
+            f"{what}: coordinates must be finite numbers within +-{MAX_COORDINATE:g}, "
+            f"got {_short(text)}"
+        )
+    return points

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
+from controllers.grasp.files import write_text
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.qlearning import EPS_FLOOR, LOG_SCALE, N_BINS, epoch_objects, scaled_error
@@ -110,8 +111,8 @@ class FSPredictor:
         return self.failure_expectation(fc, mc)
 
     def save(self, path: Path, meta: dict | None = None) -> None:
-        """Write the weights (and ``meta``) as JSON; float32 values round-trip exactly."""
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """Write the weights (and ``meta``) as JSON, atomically; float32 values round-trip
+        exactly."""
         payload = {
             "kind": "fs_predictor",
             "layers": [N_INPUTS, N_HIDDEN, N_OUTPUTS],
@@ -121,7 +122,7 @@ class FSPredictor:
             "b2": self.b2.tolist(),
             "meta": meta or {},
         }
-        path.write_text(json.dumps(payload, indent=1, sort_keys=True) + "\n")
+        write_text(path, json.dumps(payload, indent=1, sort_keys=True) + "\n")
 
     @classmethod
     def load(cls, path: Path, train_hint: str = "") -> FSPredictor:

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.predictor import FSPredictor
+from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import GAIN
 
@@ -79,5 +80,5 @@ def load_pi_composer(
     model_dir: Path, file_name: str = PI_MODEL_FILE, gain: float = GAIN
 ) -> PreImaging:
     """The PI composer whose predictor ``reproduce`` saved in ``model_dir``."""
-    hint = f": train it with `python -m controllers.grasp reproduce --out {model_dir}`"
+    hint = f": {TRAIN_HINT}"
     return PreImaging(FSPredictor.load(Path(model_dir) / file_name, train_hint=hint), gain=gain)

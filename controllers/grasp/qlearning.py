@@ -21,8 +21,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
+from controllers.grasp.files import atomic_path
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import Polygon
+from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import GAIN, PolygonBatch, run_trials
 
@@ -220,9 +222,8 @@ def train_qlearning(
 
 
 def save_q_table(q: NDArray[np.float64], path: Path) -> None:
-    """Write a Q-table as .npy (byte-for-byte reproducible)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as f:
+    """Write a Q-table as .npy (byte-for-byte reproducible), atomically."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.save(f, np.ascontiguousarray(q, dtype=np.float64))
 
 
@@ -230,10 +231,7 @@ def load_ql_composer(model_dir: Path) -> QLearningComposer:
     """The greedy Q-learning composer saved in ``model_dir`` by ``reproduce``."""
     path = Path(model_dir) / QL_MODEL_FILE
     if not path.is_file():
-        raise ModelNotTrainedError(
-            f"no trained Q-learning policy at {path}: train it with "
-            f"`python -m controllers.grasp reproduce --out {model_dir}`"
-        )
+        raise ModelNotTrainedError(f"no trained Q-learning policy at {path}: {TRAIN_HINT}")
     q = np.load(path)
     if q.shape != (N_BINS * N_BINS, len(ACTIONS)):
         raise GraspError(

@@ -4,7 +4,9 @@ Trains the Q-learning composer (section 3.6.2), the F/S predictors of the PI con
 objects and on the five-object subset (section 4.3), the atomic-action controller (section 2),
 solves Appendix A, tests everything, and writes ``DIR/report.md`` (our numbers beside the paper's),
 ``DIR/results.json``, the figures (PNG) and the trained models. Wall-clock times go to
-``DIR/timings.json`` only, so the same seed reproduces every other file byte for byte.
+``DIR/timings.json`` only, so the same seed reproduces every other file byte for byte. Every file
+is written atomically; ``results.json`` is written last and marks the run finished
+(:mod:`controllers.grasp.run_folder`), so ``trials --models DIR`` refuses an interrupted run.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from controllers.grasp.atomic import (
 )
 from controllers.grasp.composition import Composer, KnowledgeBased
 from controllers.grasp.experiments import PAPER_TABLE1_AVERAGE, PAPER_TABLE1_KB, PAPER_TABLE1_QL
+from controllers.grasp.files import write_text
 from controllers.grasp.objects import (
     PAPER_LABELS,
     PAPER_OBJECTS,
@@ -64,6 +67,7 @@ from controllers.grasp.qlearning import (
     state_bin,
     train_qlearning,
 )
+from controllers.grasp.run_folder import finished_mark, mark_started, write_results
 from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.trials import GAIN, N_CONTACTS, PolygonBatch, TrialBatch, run_trials
 
@@ -99,6 +103,8 @@ CURVE_CHUNK = 10
 #: Pre-image noise gains reported in the sensitivity table (1 = the paper's literal noise).
 NOISE_GAINS = (1.0, 2.0, 4.0, PREIMAGE_NOISE_GAIN)
 CONTROLLERS = ("kb", "ql", "pi", "pi5")
+#: The trained models a run writes (recorded, with their hashes, in results.json).
+MODEL_FILES = (QL_MODEL_FILE, PI_MODEL_FILE, PI_SUBSET_MODEL_FILE, ATOMIC_MODEL_FILE)
 QUICK_NOTE = " (QUICK run: reduced sizes, not comparable with the paper)"
 CONTROLLER_LABELS = {
     "kb": "Knowledge-based (a)",
@@ -251,6 +257,7 @@ def reproduce(
     torch.set_num_threads(1)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    mark_started(out, seed)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
     streams = np.random.SeedSequence(seed).spawn(N_STREAMS)
@@ -460,11 +467,12 @@ def reproduce(
         "section2": PAPER_ATOMIC,
         "appendix_a_theta_T": PAPER_THETA_T,
     }
-    (out / "results.json").write_text(json.dumps(res, indent=1, sort_keys=True) + "\n")
-    (out / "report.md").write_text(_report(res, names, cfg))
+    write_text(out / "report.md", _report(res, names, cfg))
     clock("figures_report", t0)
     timings["total"] = round(time.perf_counter() - t_all, 2)
-    (out / "timings.json").write_text(json.dumps(timings, indent=1) + "\n")
+    write_text(out / "timings.json", json.dumps(timings, indent=1) + "\n")
+    res["run"] = finished_mark(out, seed, MODEL_FILES)
+    write_results(out, res)  # last: marks the run finished
     progress(f"[reproduce] all done in {timings['total']:.1f} s; report: {out / 'report.md'}")
     return res
 
