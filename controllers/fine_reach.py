@@ -25,7 +25,7 @@ from hand_sim.world import World
 
 #: Depth (m) below the block's top face of the highest default contact points, and the lowest
 #: height (m) above the table they may have.
-GRASP_DEPTH = 0.03
+GRASP_DEPTH = 0.06
 MIN_CONTACT_HEIGHT = 0.02
 #: Cell size (m) of the fingertip grids and their extent around the block (m).
 FIELD_CELL = 0.005

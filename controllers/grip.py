@@ -59,8 +59,10 @@ FORCE_TOLERANCE = 0.2
 #: Time (s) allowed to close and to squeeze.
 CLOSE_TIME = 3.0
 SQUEEZE_TIME = 2.0
-#: Time (s) to open the hand at release.
-RELEASE_TIME = 0.6
+#: Time (s) to open the hand at release, and where each finger ends on its line (progress; a
+#: negative one extrapolates outwards beyond the pre-contact posture).
+RELEASE_TIME = 0.8
+RELEASE_PROGRESS = -0.6
 
 
 def _finger_slices() -> list[slice]:
@@ -205,18 +207,20 @@ class SqueezeResult:
 
 
 def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> SqueezeResult:
-    """Regulate every finger's force to its target until all are within FORCE_TOLERANCE."""
+    """Regulate every finger's force to its own target (its share of the grip) until all are
+    within FORCE_TOLERANCE of it; the fingers' servo targets then stay where the squeeze left
+    them (the grip holds as a stiffness while the arm lifts and carries)."""
     steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
     t0 = world.time
     settled_for = 0
     while world.time - t0 < max_time:
-        error = grip.forces.mean() - world.touch().mean()
+        error = grip.forces - world.touch()
         grip.progress = np.clip(
             grip.progress + FORCE_GAIN * error * CONTROL_PERIOD, 0.0, MAX_PROGRESS
         )
         world.set_hand_targets(grip.targets())
         world.step(steps)
-        ok = abs(world.touch().mean() - grip.forces.mean()) <= FORCE_TOLERANCE * grip.forces.mean()
+        ok = np.all(np.abs(world.touch() - grip.forces) <= FORCE_TOLERANCE * grip.forces)
         settled_for = settled_for + 1 if ok else 0
         if settled_for >= 5:
             break
@@ -224,14 +228,15 @@ def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> Sque
 
 
 def release(world: World, grip: Grip, *, duration: float = RELEASE_TIME) -> NDArray[np.float64]:
-    """Open the hand: every finger back along its own line to its pre-contact posture (each
-    fingertip moves out along its contact normal). Returns the touch forces (4,) afterwards."""
+    """Open the hand: every finger back along its own line past its pre-contact posture (each
+    fingertip moves out along its contact normal, to twice the pre-contact distance, so that no
+    finger grazes the block when the hand leaves). Returns the touch forces (4,) afterwards."""
     steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
     start = grip.progress.copy()
     n = max(1, round(duration / CONTROL_PERIOD))
     for k in range(1, n + 1):
         s = 0.5 - 0.5 * np.cos(np.pi * k / n)
-        grip.progress = start * (1.0 - s)
+        grip.progress = start + s * (RELEASE_PROGRESS - start)
         world.set_hand_targets(grip.targets())
         world.step(steps)
     return world.touch()

@@ -19,28 +19,28 @@ from numpy.typing import ArrayLike, NDArray
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
 from controllers.grip import CONTROL_PERIOD, Grip
-from controllers.reach import _interpolate
 from hand_sim.world import World
 
 #: Lift: height (m) and duration (s); the block must rise with the palm within SLIP_TOLERANCE.
 LIFT_HEIGHT = 0.10
 LIFT_TIME = 1.5
 SLIP_TOLERANCE = 0.01
-#: Carrying: largest joint speed (rad/s).
-CARRY_SPEED = 0.5
-#: Set-down: lowering speed (m/s), the furthest it lowers (m), the share of the block's weight
-#: the table must take (from the wrist sensor) to count as supported, and how much further (m)
-#: the palm goes down once it does (the grip is stiff: the pads give a little before the table
-#: takes the whole weight).
+#: Carrying: largest joint speed (rad/s) and acceleration (rad/s^2) along the path (a trapezoidal
+#: speed profile: a carried block swings in the grip at every jerk).
+CARRY_SPEED = 0.4
+CARRY_ACCELERATION = 0.6
+#: Set-down: lowering speed (m/s), the furthest it lowers (m) and the share of the block's weight
+#: the table must take (from the wrist sensor) to count as supported.
 LOWER_SPEED = 0.02
 MAX_LOWER = 0.08
 SUPPORTED_SHARE = 0.5
-SET_DOWN_PRESS = 0.003
-#: After the set-down the hand may push the block into the table (the arm's servos lag): the palm
-#: rises in steps (m) until the push is below the tolerance (N), at most MAX_UNLOAD (m).
-UNLOAD_STEP = 0.0005
-UNLOAD_TOLERANCE = 0.3
-MAX_UNLOAD = 0.01
+#: After the set-down the hand may push the block into the table (the arm's servos lag behind the
+#: lowering): the palm rises in steps (m), each given UNLOAD_SETTLE (s) to settle, until the push
+#: is below the tolerance (N), at most MAX_UNLOAD (m).
+UNLOAD_STEP = 0.0002
+UNLOAD_SETTLE = 0.1
+UNLOAD_TOLERANCE = 1.0
+MAX_UNLOAD = 0.005
 #: Retreat: how far (m) the palm backs off along its approach axis, then rises, and the time each
 #: takes (s).
 RETREAT_BACK = 0.06
@@ -143,16 +143,51 @@ def carry(
     max_joint_speed: float = CARRY_SPEED,
     on_period: Callable[[World], None] | None = None,
 ) -> None:
-    """Drive the arm along ``path`` (k, 5) at ``max_joint_speed`` while the grip holds;
+    """Drive the arm along ``path`` (k, 5) with a trapezoidal speed profile (at most
+    ``max_joint_speed`` and CARRY_ACCELERATION on the largest joint) while the grip holds;
     ``on_period(world)`` is called every control period (e.g. to watch the block)."""
-    dense = _interpolate(np.asarray(path, dtype=float), max_joint_speed * CONTROL_PERIOD)
-    for q in dense:
+    for q in timed_path(path, max_joint_speed, CARRY_ACCELERATION, CONTROL_PERIOD):
         world.set_arm_targets(q)
         grip.regulate(world, CONTROL_PERIOD)
         world.step(_steps(world))
         if on_period is not None:
             on_period(world)
     _hold(world, grip, SETTLE_TIME)
+
+
+def timed_path(
+    path: ArrayLike, max_speed: float, max_acceleration: float, period: float
+) -> NDArray[np.float64]:
+    """Postures (n, dof) at every ``period`` s along the polyline ``path`` (k, dof), moving with
+    a trapezoidal profile of the path parameter (arc length in the max-norm of joint motion):
+    accelerate at ``max_acceleration``, cruise at ``max_speed``, decelerate to rest."""
+    p = np.asarray(path, dtype=float)
+    if len(p) < 2:
+        return p.copy()
+    seg = np.abs(np.diff(p, axis=0)).max(axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(arc[-1])
+    if total <= 0.0:
+        return p[-1:].copy()
+    v, a = float(max_speed), float(max_acceleration)
+    t_acc = v / a
+    if a * t_acc * t_acc > total:  # never reaches cruise speed: a triangle profile
+        t_acc = float(np.sqrt(total / a))
+        v = a * t_acc
+    cruise = (total - a * t_acc * t_acc) / v
+    duration = 2.0 * t_acc + cruise
+    t = np.arange(1, int(np.ceil(duration / period)) + 1) * period
+    t = np.minimum(t, duration)
+    s = np.where(
+        t < t_acc,
+        0.5 * a * t**2,
+        np.where(
+            t < t_acc + cruise,
+            0.5 * a * t_acc**2 + v * (t - t_acc),
+            total - 0.5 * a * np.maximum(duration - t, 0.0) ** 2,
+        ),
+    )
+    return np.column_stack([np.interp(s, arc, p[:, j]) for j in range(p.shape[1])])
 
 
 def held_load(world: World, empty_hand_force: ArrayLike) -> float:
@@ -192,17 +227,14 @@ def lower_until_supported(
     def supported(w: World) -> bool:
         return held_load(w, empty_hand_force) < (1.0 - SUPPORTED_SHARE) * before
 
-    touched = not move_palm(
-        world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported
-    )
-    if touched:
-        move_palm(world, checker, [0.0, 0.0, -SET_DOWN_PRESS], SET_DOWN_PRESS / speed, grip=grip)
+    move_palm(world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported)
     _hold(world, grip, SETTLE_TIME)
     # the arm's servos lag behind the lowering: take back any push into the table
     for _ in range(round(MAX_UNLOAD / UNLOAD_STEP)):
         if held_load(world, empty_hand_force) > -UNLOAD_TOLERANCE:
             break
-        move_palm(world, checker, [0.0, 0.0, UNLOAD_STEP], CONTROL_PERIOD * 3, grip=grip)
+        move_palm(world, checker, [0.0, 0.0, UNLOAD_STEP], CONTROL_PERIOD, grip=grip)
+        _hold(world, grip, UNLOAD_SETTLE)
     _hold(world, grip, SETTLE_TIME)
     after = held_load(world, empty_hand_force)
     return SetDownResult(
