@@ -207,6 +207,7 @@ class EpisodeRecorder:
         self._target: int | None = None
         self._contacts_shown = False
         self._last_logged: float | None = None
+        self._latest: tuple[int, float] | None = None  # (step, sim_time) of the latest tick
         self._synthesis_offset = 0
         self._synthesis_last: int | None = None
         self._synthesis_time: float | None = None
@@ -370,6 +371,8 @@ class EpisodeRecorder:
         if world.model is not self.world.model:
             raise HandSimError("EpisodeRecorder.tick got a different world than it records")
         t = world.time
+        if self._latest is None or t > self._latest[1]:
+            self._latest = (sim_step(world), t)
         due = {k: r.due(t) for k, r in self._rates.items()}
         if any(due.values()):
             self._log_frame(world, due)
@@ -464,8 +467,14 @@ class EpisodeRecorder:
 
     # --- the machine's records -------------------------------------------------------------
     def _now(self) -> None:
-        """Put what is logged next at the world's current simulated time."""
-        self.recorder.set_time(sim_step(self.world), self.world.time)
+        """Put what is logged next at the world's current simulated time, or at the latest time
+        already logged if the world's time went back (MuJoCo resets the state, time included,
+        when it detects an instability): the machine's last records stay at the end."""
+        t = self.world.time
+        if self._latest is not None and t < self._latest[1]:
+            self.recorder.set_time(*self._latest)
+        else:
+            self.recorder.set_time(sim_step(self.world), t)
 
     def _event(self, text: str, level: str) -> None:
         self._now()

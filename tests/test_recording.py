@@ -22,7 +22,7 @@ from fsm.recording import FORCE_ARROW_SCALE, EpisodeRecorder
 from hand_sim import robot
 from hand_sim.camera import OverheadCamera
 from hand_sim.contacts import robot_contacts
-from hand_sim.errors import HandSimError, SceneError
+from hand_sim.errors import HandSimError, SceneError, SimulationError
 from hand_sim.recorder import read_recording
 from hand_sim.scene import load_scene
 from hand_sim.world import World
@@ -32,7 +32,8 @@ CONTROL_STEPS = 10  # one 20 ms control period of 2 ms physics steps
 
 def rows(path: Path, entity: str, column: str) -> list[tuple[dict[str, Any], Any]]:
     """(timeline values, value) of every row of ``column`` at ``entity``, in time order of
-    ``step`` (static rows last); timelines as numbers (durations in seconds)."""
+    ``step`` (static rows last), rows at the same time in the order they were logged (rerun's
+    row ids are big-endian time stamps); timelines as numbers (durations in seconds)."""
     out = []
     for chunk in RrdReader(str(path)).stream().to_chunks():
         if chunk.entity_path != entity:
@@ -48,9 +49,11 @@ def rows(path: Path, entity: str, column: str) -> list[tuple[dict[str, Any], Any
                     times[name] = [v / 1e9 for v in col.cast(pa.int64()).to_pylist()]
                 else:
                     times[name] = col.to_pylist()
+        ids = batch.column("rerun.controls.RowId").to_pylist()
         for i, value in enumerate(batch.column(column).to_pylist()):
-            out.append(({k: v[i] for k, v in times.items()}, value))
-    return sorted(out, key=lambda r: (r[0].get("step", np.inf), r[0].get("synthesis_step", 0)))
+            out.append(({k: v[i] for k, v in times.items()}, value, ids[i]))
+    out.sort(key=lambda r: (r[0].get("step", np.inf), r[0].get("synthesis_step", 0), r[2]))
+    return [(t, v) for t, v, _ in out]
 
 
 def timelines(path: Path) -> set[str]:
@@ -239,6 +242,29 @@ def test_file_is_complete_when_the_episode_raises(tmp_path: Path, world: World) 
     rec.close()  # idempotent
 
 
+def test_records_after_mujoco_resets_an_unstable_state_stay_at_the_end(
+    tmp_path: Path, world: World
+) -> None:
+    path = tmp_path / "unstable.rrd"
+    rec = EpisodeRecorder(path, world)
+    world.on_step = rec.tick
+    run_for(world, 0.2)
+    t_last = world.time
+    adr = world.model.jnt_qposadr[world.model.body_jntadr[world.block_body_id("pentagon")]]
+    world.data.qpos[adr] = np.nan
+    with pytest.raises(SimulationError, match="BADQPOS"):
+        world.step(1)
+    assert world.time < 0.01  # MuJoCo reset the state, time included
+    rec.log_transition("Grasp Object", "Failed", "simulation unstable", level="ERROR")
+    rec.log_verdict(False, "simulation unstable")
+    rec.close()
+    events = rows(path, "/events", "TextLog:text")
+    assert [t["sim_time"] for t, _ in events] == [pytest.approx(t_last)] * 2
+    # no final frame of the reset state: the last pose is the one before the blow-up
+    poses = rows(path, "/world/bodies/pentagon", "Transform3D:translation")
+    assert poses[-1][0]["sim_time"] == pytest.approx(t_last)
+
+
 def test_contact_arrows_when_a_finger_presses_the_block(tmp_path: Path) -> None:
     """Top approach over the block, fingers curled, palm lowered until the hand touches the block
     and pressed 1 mm further: the arrows are the robot's contact forces on the block, tip at the
@@ -268,27 +294,34 @@ def test_contact_arrows_when_a_finger_presses_the_block(tmp_path: Path) -> None:
         )
         assert not touching  # stopped early: the hand reached the block
         move_palm(world, checker, (0.0, 0.0, -0.001), 0.2)
-        expected = robot_contacts(world, body)
-        rec.set_target(None)
+        expected, t_pressed = robot_contacts(world, body), world.time
+        world.step(CONTROL_STEPS)
+        rec.set_target(None)  # clears the drawing at once
+        t_cleared = world.time
         world.step(CONTROL_STEPS)
     assert expected
-    origins = rows(path, "/world/contacts/forces", "Arrows3D:origins")
-    vectors = rows(path, "/world/contacts/forces", "Arrows3D:vectors")
+
+    def at(entity: str, column: str, t: float) -> list[Any]:
+        return [v for time, v in rows(path, entity, column) if time["sim_time"] == pytest.approx(t)]
+
     points = rows(path, "/world/contacts/points", "Points3D:positions")
     assert points[0][1] == []  # the hand above the block at the start: nothing drawn
-    assert points[-1][1] == []  # set_target(None) clears the drawing
+    assert [] in at("/world/contacts/points", "Points3D:positions", t_cleared)
+    assert points[-1][0]["sim_time"] == pytest.approx(t_cleared)  # nothing drawn after that
     pos = np.array([c.position for c in expected])
     force = np.array([c.force for c in expected])
-    # the last drawing with a target is the state when `expected` was read
-    o, v = np.array(origins[-2][1]), np.array(vectors[-2][1])
+    (o,) = at("/world/contacts/forces", "Arrows3D:origins", t_pressed)
+    (v,) = at("/world/contacts/forces", "Arrows3D:vectors", t_pressed)
+    (p,) = at("/world/contacts/points", "Points3D:positions", t_pressed)
+    o, v = np.array(o), np.array(v)
     np.testing.assert_allclose(v, FORCE_ARROW_SCALE * force, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(o + v, pos, atol=1e-6)
-    np.testing.assert_allclose(np.array(points[-2][1]), pos, atol=1e-6)
+    np.testing.assert_allclose(np.array(p), pos, atol=1e-6)
     assert v[:, 2].sum() < 0.0  # pressing from above pushes the block down
     for finger in {c.finger for c in expected}:
         total = sum(c.normal_force for c in expected if c.finger == finger)
-        series = rows(path, f"/scalars/contact_force/{finger}", "Scalars:scalars")
-        assert series[-1][1][0] == pytest.approx(total)
+        (series,) = at(f"/scalars/contact_force/{finger}", "Scalars:scalars", t_pressed)
+        assert series[0] == pytest.approx(total)
         assert total > 0.0
 
 
