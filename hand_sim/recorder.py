@@ -6,9 +6,11 @@ Layout of the recording:
   to the world are logged once, as static. Poses are buffered and sent as columns.
 - ``world/bodies/<body>/geoms/<geom>``: the geom's pose in its body and its shape (Boxes3D,
   Capsules3D, Cylinders3D, Ellipsoids3D or Mesh3D), static.
-- ``world/cameras/<name>``: a camera's pose and pinhole model (static, a frustum in 3D).
+- ``world/cameras/<name>``: a camera's pose and pinhole model (a frustum in 3D), its colour
+  images at ``world/cameras/<name>/rgb`` (JPEG; they project into the 3D view).
 - ``images/<name>``: JPEG-compressed colour images; ``depth/<name>``: depth images (m).
-- ``scalars/<name>``: scalar series; ``events``: text log.
+- ``scalars/<name>``: scalar series (one at a time, or rows of several buffered and sent as
+  columns: :meth:`Recorder.log_scalars`); ``events``: text log.
 Timelines: ``step`` (sequence) and ``sim_time`` (duration, s). Dots replace the slashes of
 dm_control names in entity paths (``arm/hand/palm`` -> ``arm.hand.palm``).
 """
@@ -18,6 +20,7 @@ from __future__ import annotations
 import os
 import uuid
 from collections import defaultdict
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -50,6 +53,8 @@ POSE_BUFFER_FRAMES = 250
 #: Seconds to wait for the file sink when closing.
 FLUSH_TIMEOUT_S = 30.0
 EVENT_LEVELS = ("TRACE", "DEBUG", "INFO", "WARN", "ERROR", "CRITICAL")
+#: Entity (under a camera's path) of the camera's colour images.
+CAMERA_IMAGE = "rgb"
 #: MuJoCo's default geom colour: a geom with a material and this rgba shows the material's colour.
 _DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0], dtype=np.float32)
 
@@ -57,6 +62,11 @@ _DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0], dtype=np.float32)
 def entity_name(name: str) -> str:
     """A MuJoCo name as one rerun entity-path part."""
     return name.strip("/").replace("/", ".") or "unnamed"
+
+
+def sim_step(world: World) -> int:
+    """The index of the world's current physics step (the ``step`` timeline)."""
+    return round(world.data.time / world.model.opt.timestep)
 
 
 def _xyzw(wxyz: ArrayLike) -> list[float]:
@@ -134,9 +144,14 @@ class Recorder:
         self._rec: rr.RecordingStream | None = rr.RecordingStream(
             APPLICATION_ID, recording_id=str(uuid.uuid4())
         )
+        # simulated time is the recording's time: no wall-clock ``log_time`` timeline (it would
+        # make two runs of the same episode differ)
+        self._rec.set_log_time_enabled(False)
         self._rec.save(str(self._partial))
         self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._geometry_for: int | None = None
+        self._now: tuple[int, float] | None = None  # (step, sim_time) of the last set_time
+        self._series: dict[tuple[str, ...], _ScalarRows] = {}
         self._moving: list[tuple[int, str]] = []  # (body id, entity path) of non-welded bodies
         self._steps: list[int] = []
         self._times: list[float] = []
@@ -154,6 +169,7 @@ class Recorder:
     # --- time ------------------------------------------------------------------------------
     def set_time(self, step: int, sim_time: float) -> None:
         """Set both timelines for what is logged next."""
+        self._now = (int(step), float(sim_time))
         self.stream.set_time("step", sequence=int(step))
         self.stream.set_time("sim_time", duration=float(sim_time))
 
@@ -198,8 +214,8 @@ class Recorder:
         (buffered: written every :data:`POSE_BUFFER_FRAMES` frames and on close)."""
         if self._geometry_for != id(world.model):
             self.log_geometry(world)
-        m, d = world.model, world.data
-        step = round(d.time / m.opt.timestep)
+        d = world.data
+        step = sim_step(world)
         self.set_time(step, d.time)
         ids = [b for b, _ in self._moving]
         self._steps.append(step)
@@ -208,6 +224,15 @@ class Recorder:
         self._quat.append(d.xquat[ids][:, [1, 2, 3, 0]].copy())
         if len(self._steps) >= POSE_BUFFER_FRAMES:
             self._flush_poses()
+
+    def log_poses_now(self, world: World) -> None:
+        """Log the pose of every moving body now, unbuffered, at the stream's current times
+        (which may include a timeline of the caller's, such as a controller's step counter)."""
+        if self._geometry_for != id(world.model):
+            self.log_geometry(world)
+        d = world.data
+        for b, path in self._moving:
+            self.stream.log(path, self._pose(d, b))
 
     def _flush_poses(self) -> None:
         """Send the buffered body poses, one column chunk per body."""
@@ -230,34 +255,48 @@ class Recorder:
         intrinsics: NDArray[np.float64],
         pose: NDArray[np.float64],
         size: tuple[int, int],
+        *,
+        static: bool = True,
+        image_plane_distance: float | None = None,
     ) -> None:
-        """Log a pinhole camera (static) as ``world/cameras/<name>``, drawn as a frustum in 3D:
+        """Log a pinhole camera as ``world/cameras/<name>``, drawn as a frustum in 3D:
         ``intrinsics`` K (3x3), ``pose`` camera-to-world 4x4 in OpenCV axes (x right, y down,
-        z forward), ``size`` (width, height) in pixels."""
+        z forward), ``size`` (width, height) in pixels. Static (for the whole recording) unless
+        ``static=False`` (then at the current time). ``image_plane_distance`` (m) is where the
+        3D view draws the camera's images (rerun's default when None)."""
         path = f"{CAMERAS_PATH}/{name}"
         q = _matrix_to_xyzw(pose[:3, :3])
-        self.stream.log(path, rr.Transform3D(translation=pose[:3, 3], quaternion=q), static=True)
+        self.stream.log(path, rr.Transform3D(translation=pose[:3, 3], quaternion=q), static=static)
         self.stream.log(
             path,
             rr.Pinhole(
                 image_from_camera=intrinsics,
                 resolution=list(size),
                 camera_xyz=rr.ViewCoordinates.RDF,
+                image_plane_distance=image_plane_distance,
             ),
-            static=True,
+            static=static,
         )
+
+    def log_camera_image(self, name: str, rgb: NDArray[np.uint8]) -> None:
+        """Log an (H, W, 3) uint8 colour image of camera ``name`` (see :meth:`log_camera`) as
+        ``world/cameras/<name>/rgb``, JPEG-compressed: the 2D view of the camera shows it and
+        the 3D view projects it through the camera's pinhole."""
+        self.stream.log(f"{CAMERAS_PATH}/{name}/{CAMERA_IMAGE}", self._jpeg(name, rgb))
 
     # --- images, scalars, events -----------------------------------------------------------
     def log_image(self, entity: str, rgb: NDArray[np.uint8]) -> None:
         """Log an (H, W, 3) uint8 colour image as ``images/<entity>``, JPEG-compressed."""
+        self.stream.log(f"{IMAGES_PATH}/{entity}", self._jpeg(entity, rgb))
+
+    def _jpeg(self, what: str, rgb: NDArray[np.uint8]) -> rr.EncodedImage:
         img = np.asarray(rgb)
         if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
             raise HandSimError(
-                f"log_image({entity!r}) needs an (H, W, 3) uint8 image, got {img.shape} {img.dtype}"
+                f"the image of {what!r} must be an (H, W, 3) uint8 array, "
+                f"got {img.shape} {img.dtype}"
             )
-        self.stream.log(
-            f"{IMAGES_PATH}/{entity}", rr.Image(img).compress(jpeg_quality=self.jpeg_quality)
-        )
+        return rr.Image(img).compress(jpeg_quality=self.jpeg_quality)
 
     def log_depth(self, entity: str, depth: NDArray[np.float32]) -> None:
         """Log an (H, W) depth image in metres as ``depth/<entity>``."""
@@ -268,6 +307,24 @@ class Recorder:
     def log_scalar(self, name: str, value: float) -> None:
         """Append ``value`` to the series ``scalars/<name>``."""
         self.stream.log(f"{SCALARS_PATH}/{name}", rr.Scalars(float(value)))
+
+    def log_scalars(self, names: Sequence[str], values: ArrayLike) -> None:
+        """Append one row to the series ``scalars/<name>`` of each of ``names``, at the time of
+        the last :meth:`set_time`/:meth:`log_world` (buffered per tuple of names: sent as one
+        column per series every :data:`POSE_BUFFER_FRAMES` rows and on close, which costs a
+        few microseconds per row instead of one log call per value)."""
+        if self._now is None:
+            raise HandSimError("log_scalars needs a time: call set_time or log_world first")
+        key = tuple(names)
+        row = np.asarray(values, dtype=float).reshape(-1)
+        if row.shape != (len(key),):
+            raise HandSimError(f"log_scalars got {row.size} values for {len(key)} series")
+        rows = self._series.get(key)
+        if rows is None:
+            rows = self._series[key] = _ScalarRows(key)
+        rows.append(*self._now, row)
+        if len(rows) >= POSE_BUFFER_FRAMES:
+            rows.send(self.stream)
 
     def log_event(self, text: str, level: str = "INFO") -> None:
         """Log a text event (level one of TRACE, DEBUG, INFO, WARN, ERROR, CRITICAL)."""
@@ -281,6 +338,8 @@ class Recorder:
         if self._rec is not None:
             try:
                 self._flush_poses()
+                for rows in self._series.values():
+                    rows.send(self._rec)
             finally:
                 rec, self._rec = self._rec, None
                 try:
@@ -306,6 +365,39 @@ class Recorder:
                 )
         finally:
             self.close()
+
+
+class _ScalarRows:
+    """Buffered rows of a fixed tuple of scalar series that share their times."""
+
+    def __init__(self, names: tuple[str, ...]) -> None:
+        self.paths = [f"{SCALARS_PATH}/{n}" for n in names]
+        self.steps: list[int] = []
+        self.times: list[float] = []
+        self.rows: list[NDArray[np.float64]] = []
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def append(self, step: int, sim_time: float, row: NDArray[np.float64]) -> None:
+        self.steps.append(step)
+        self.times.append(sim_time)
+        self.rows.append(row)
+
+    def send(self, rec: rr.RecordingStream) -> None:
+        """One column per series, then empty the buffer."""
+        if not self.steps:
+            return
+        indexes = [
+            rr.TimeColumn("step", sequence=np.array(self.steps)),
+            rr.TimeColumn("sim_time", duration=np.array(self.times)),
+        ]
+        values = np.stack(self.rows)
+        for i, path in enumerate(self.paths):
+            rec.send_columns(
+                path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, i])
+            )
+        self.steps, self.times, self.rows = [], [], []
 
 
 def read_recording(path: str | Path) -> dict[str, dict[str, int]]:
