@@ -190,11 +190,21 @@ def timed_path(
     return np.column_stack([np.interp(s, arc, p[:, j]) for j in range(p.shape[1])])
 
 
+#: Standard gravity (m/s^2), to express a held mass as a weight.
+STANDARD_GRAVITY = 9.81
+
+
 def held_load(world: World, empty_hand_force: ArrayLike) -> float:
-    """The vertical load (N) the hand carries beyond its own weight: the wrist sensor's force now
-    minus ``empty_hand_force`` (3,), measured with the hand empty."""
+    """The weight (N) the hand carries beyond its own, from the wrist's sensors: the vertical
+    wrist force divided by the wrist accelerometer's vertical reading is the mass the wrist
+    carries (so the arm's own accelerations cancel out); less the hand's mass, from
+    ``empty_hand_force`` (3,) measured with the hand empty and at rest."""
     force, _ = world.wrist_wrench()
-    return float(force[2] - np.asarray(empty_hand_force, dtype=float)[2])
+    up = float(world.wrist_acceleration()[2])
+    hand_mass = float(np.asarray(empty_hand_force, dtype=float)[2]) / STANDARD_GRAVITY
+    if up <= 1.0:  # falling freely: the load cannot be told
+        return 0.0
+    return (float(force[2]) / up - hand_mass) * STANDARD_GRAVITY
 
 
 @dataclass(frozen=True)

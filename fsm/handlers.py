@@ -25,14 +25,22 @@ from controllers.hand_reach import (
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
 from controllers.posture import HandIndices, apply_posture, solve_posture
 from controllers.reach import APPROACHES, ReachTarget, execute_path, plan_coarse_reach, plan_delivery
-from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
+from controllers.errors import ReachError
+from controllers.transport import (
+    carry,
+    held_load,
+    lift,
+    lower_until_supported,
+    move_palm,
+    retreat,
+)
 from fsm.context import Episode
 from fsm.judge import judge
-from fsm.layout import free_slot, place_is_free
+from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, Failure, State
 from hand_sim import robot
 from hand_sim.blocks import WOOD_DENSITY
-from hand_sim.geometry import place_polygon
+from hand_sim.geometry import place_polygon, point_in_convex_polygon
 from vision import Observation, VisionError, analyze, overhead_camera
 from vision.errors import NotABlockError
 
@@ -54,6 +62,10 @@ SEPARATION_MARGIN = 0.002
 #: Fingers retract this far (m) from the block before the arm changes posture or the hand
 #: pre-shapes for the grasp.
 RETRACT = 0.015
+#: Posture Control changes the arm's posture backed out by this much (m) along the approach axis,
+#: each straight move out and in taking BACKOFF_TIME (s): the fingers stay clear of the block.
+BACKOFF = 0.08
+BACKOFF_TIME = 0.8
 #: Times (s) of the hand's moves.
 RETRACT_TIME = 0.4
 PRESHAPE_TIME = 0.6
@@ -137,7 +149,7 @@ def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -
     scene = ep.world.scene
     first = np.asarray(ep.options.place if ep.options.place is not None else scene.place)
     if ep.cycle == 0:
-        if not place_is_free(first, radius, footprints, scene.table):
+        if not place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
             raise EpisodeFailure(
                 Failure.PLACE_UNREACHABLE,
                 f"place point {first.round(3).tolist()} is occupied by another block",
@@ -155,9 +167,13 @@ def _other_footprints(ep: Episode, index: int) -> list[np.ndarray]:
     cannot be extracted counts by its convex region of pixels on the table plane)."""
     out = []
     g = ep.selection.observation.geometry
+    picked = ep.model.world_vertices
+    centres = ep.selection.block_centres()[:, :2]
     for i, region in enumerate(ep.selection.blocks):
         if i == index or not _on_table(ep, i):
             continue
+        if point_in_convex_polygon(centres[i], picked):
+            continue  # a fragment of the picked block's own view
         try:
             out.append(ep.selection.model(i).world_vertices)
         except VisionError:
@@ -219,7 +235,7 @@ def select_model(ep: Episode) -> Step:
         ep.recorder.log_vision(
             ep.selection.observation.rgb,
             ep.selection.observation.geometry.K,
-            ep.selection.observation.geometry.pose,
+            ep.selection.observation.geometry.cam_to_world,
             model.world_vertices,
             model.pixel_contour,
             float(model.centroid[2]),
@@ -302,6 +318,23 @@ def _move_arm_and_hand(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> No
     world.step(round(0.3 / world.model.opt.timestep))
 
 
+def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
+    """Take the arm and hand to a new posture near the block without sweeping a finger through
+    it: retract the fingers, back the palm out along its approach axis by BACKOFF, move to the
+    new posture backed out likewise, and approach it again in a straight line."""
+    world = ep.world
+    checker = CollisionChecker(world, model=ep.planning)
+    _retract(ep)
+    _, R_now = checker.palm_pose(world.arm_targets())
+    move_palm(world, checker, -BACKOFF * R_now[:, 2], BACKOFF_TIME)
+    p_new, R_new = checker.palm_pose(arm_q)
+    raised = checker.solve_ik(p_new - BACKOFF * R_new[:, 2], R_new, arm_q)
+    if not raised.found:
+        raise ReachError("the new arm posture cannot be approached along the hand's axis")
+    _move_arm_and_hand(ep, raised.q, hand_q)
+    move_palm(world, checker, BACKOFF * R_new[:, 2], BACKOFF_TIME)
+
+
 def posture_control(ep: Episode) -> Step:
     """Posture Control (Grupen & Souccar, ref. [16]): the arm and hand reconfigure to maximise
     the hand's manipulability, holding the fingertips (after Fine Reach) or bringing the current
@@ -344,8 +377,7 @@ def posture_control(ep: Episode) -> Step:
     hand_pre = solve_posture(
         world, pre, optimize=False, joints="hand", model=ep.planning, pad_centres=pre_pads, qpos=qpos
     ).hand_q
-    _retract(ep)
-    _move_arm_and_hand(ep, arm_q, hand_pre)
+    _reposition(ep, arm_q, hand_pre)
     return Step(
         State.WRENCH_CLOSURE,
         f"arm reconfigured (wrist roll {np.degrees(roll):+.0f} deg tried first) so that the "

@@ -28,6 +28,9 @@ JITTER_ATTEMPTS = 100
 #: and any other block's footprint, and the largest distance (m) searched from the first place.
 SLOT_SPACING = 0.08
 SLOT_CLEARANCE = 0.03
+#: A place point the user or the scene asked for is refused only when the block could not stand
+#: there at all (closer than the scenes' smallest block gap to another block).
+ASKED_CLEARANCE = 0.005
 SLOT_SEARCH_RADIUS = 0.35
 
 
@@ -63,16 +66,20 @@ def episode_scene(name: str, seed: int, blocks: int | None = None) -> Scene:
 
 
 def place_is_free(
-    place: ArrayLike, radius: float, footprints: list[NDArray[np.float64]], table: TableSpec
+    place: ArrayLike,
+    radius: float,
+    footprints: list[NDArray[np.float64]],
+    table: TableSpec,
+    clearance: float = SLOT_CLEARANCE,
 ) -> bool:
-    """Whether a block of circumradius ``radius`` (m) centred at ``place`` stays
-    :data:`SLOT_CLEARANCE` from every footprint (world (k, 2) vertices) and on the table."""
+    """Whether a block of circumradius ``radius`` (m) centred at ``place`` stays ``clearance``
+    from every footprint (world (k, 2) vertices) and on the table."""
     p = np.asarray(place, dtype=float)
     if not table.contains(p[None], margin=radius + 0.005):
         return False
     angles = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
     disc = p + radius * np.column_stack([np.cos(angles), np.sin(angles)])
-    return all(convex_polygon_distance(disc, fp) >= SLOT_CLEARANCE for fp in footprints)
+    return all(convex_polygon_distance(disc, fp) >= clearance for fp in footprints)
 
 
 def free_slot(

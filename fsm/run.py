@@ -20,7 +20,7 @@ import numpy as np
 
 from controllers.grasp.errors import GraspError
 from fsm.context import APPROACH_CHOICES, CONTROLLERS, EpisodeOptions, out_paths
-from fsm.layout import episode_scene, place_is_free
+from fsm.layout import ASKED_CLEARANCE, episode_scene, place_is_free
 from hand_sim.errors import HandSimError
 from hand_sim.scene import Scene, scene_names
 
@@ -132,7 +132,7 @@ def _check_place(scene: Scene, place: tuple[float, float], target_radius: float,
             f"the arm places within {PLACE_REACH[0]}-{PLACE_REACH[1]} m"
         )
     footprints = [b.footprint() for b in scene.blocks if b.name != target]
-    if not place_is_free(np.asarray(place), target_radius, footprints, t):
+    if not place_is_free(np.asarray(place), target_radius, footprints, t, ASKED_CLEARANCE):
         raise BadInput(f"place point {list(place)} is occupied: another block is within reach of it")
 
 

@@ -41,7 +41,7 @@ PALM_BODY = "palm"
 #: The hand's mount site (its frame at the back of the palm) and the wrist force/torque sensors
 #: there (force, torque).
 MOUNT_SITE = "mount"
-WRIST_SENSORS: tuple[str, ...] = ("wrist_force", "wrist_torque")
+WRIST_SENSORS: tuple[str, ...] = ("wrist_force", "wrist_torque", "wrist_accel")
 #: Links of a finger, palm side first, as the hand model names its bodies (``ff_proximal``...).
 FINGER_LINKS: tuple[str, ...] = ("proximal", "middle", "distal")
 

@@ -59,6 +59,7 @@ class _Indices:
     touch_adr: NDArray[np.int64]
     wrist_force_adr: int
     wrist_torque_adr: int
+    wrist_accel_adr: int
     mount_site: int
     block_bodies: dict[str, int]
     block_qpos: dict[str, int]
@@ -153,6 +154,7 @@ class World:
             touch_adr=np.asarray(touch, dtype=np.int64),
             wrist_force_adr=int(wrist[0]) if len(wrist) else -1,
             wrist_torque_adr=int(wrist[1]) if len(wrist) else -1,
+            wrist_accel_adr=int(wrist[2]) if len(wrist) else -1,
             mount_site=int(mount[0]) if len(mount) else -1,
             block_bodies=bodies,
             block_qpos=qpos,
@@ -356,3 +358,11 @@ class World:
         R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
         d = self.data.sensordata
         return R @ d[i : i + 3], R @ d[j : j + 3]
+
+    def wrist_acceleration(self) -> NDArray[np.float64]:
+        """The wrist accelerometer (m/s^2, world axes): the hand's acceleration minus gravity, so
+        (0, 0, 9.81) at rest."""
+        self._require_robot()
+        i = self._idx.wrist_accel_adr
+        R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
+        return R @ self.data.sensordata[i : i + 3]
