@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -21,11 +22,12 @@ from controllers.harmonic import GridSpec, HarmonicField, Interpolator, solve_ha
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
+from hand_sim.contacts import pad_object_forces
 from hand_sim.world import World
 
 #: Depth (m) below the block's top face of the highest default contact points, and the lowest
 #: height (m) above the table they may have.
-GRASP_DEPTH = 0.06
+GRASP_DEPTH = 0.04
 MIN_CONTACT_HEIGHT = 0.02
 #: Cell size (m) of the fingertip grids and their extent around the block (m).
 FIELD_CELL = 0.005
@@ -245,6 +247,8 @@ def fine_reach(
     tolerance: float = DEFAULT_TOLERANCE,
     max_time: float = MAX_TIME,
     standoff: float = TOUCH_STANDOFF,
+    model: mujoco.MjModel | None = None,
+    touchable: str | None = None,
 ) -> FineReachResult:
     """Bring the fingertips to ``targets`` on block ``target_name`` (default: the fingertips'
     current positions projected on its side faces, :func:`project_to_surface`), following each
@@ -252,8 +256,12 @@ def fine_reach(
     perceived (e.g. :meth:`ReachTarget.from_object_model`); default: where the physics has it.
 
     Each fingertip is steered ``standoff`` m outside its surface point. Touch guard: a fingertip
-    whose pad feels anything (:meth:`World.touch` above :data:`TOUCH_GUARD`) stops where it is,
-    so a finger arriving early does not push the block before the others arrive."""
+    whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`) stops where it
+    is, so a finger arriving early does not push the block before the others arrive.
+
+    ``model`` (e.g. the planning model holding the perceived block, :mod:`controllers.planning_model`)
+    turns on collision avoidance in the IK: the hand's links keep clear of the table and the
+    blocks, and only the pads may touch the geom named ``touchable``."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")
     target = ReachTarget.from_world(world, target_name) if seen is None else seen
@@ -271,7 +279,7 @@ def fine_reach(
     periods = 0
     for _ in range(round(max_time / CONTROL_PERIOD)):
         tips = world.fingertip_positions()
-        stopped |= world.touch() > TOUCH_GUARD
+        stopped |= pad_object_forces(world) > TOUCH_GUARD
         err = np.linalg.norm(tips - goals, axis=1)
         if np.all((err < 0.5 * tolerance) | stopped):
             break
@@ -284,7 +292,15 @@ def fine_reach(
             if direction is None:
                 direction = to_goal / max(dist, 1e-12)
             nxt[f] = tip if stopped[f] else tip + direction * min(TIP_STEP, dist)
-        sol = solve_posture(world, nxt, optimize=False, reach_iterations=IK_ITERATIONS)
+        sol = solve_posture(
+            world,
+            nxt,
+            optimize=False,
+            reach_iterations=IK_ITERATIONS,
+            model=model,
+            avoid_collisions=model is not None,
+            touchable=touchable,
+        )
         # position servos sag under load: add their steady-state error to the new targets
         world.set_arm_targets(sol.arm_q + 0.5 * (world.arm_targets() - world.arm_qpos()))
         world.set_hand_targets(sol.hand_q + 0.5 * (world.hand_targets() - world.hand_qpos()))

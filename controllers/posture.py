@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
 from hand_sim import robot
+from hand_sim.contacts import pad_object_forces
 from hand_sim.world import World
 
 #: Fingertip position tolerance (m) for a target to count as reached / held.
@@ -62,9 +63,14 @@ JOINT_SETS: tuple[str, ...] = ("arm+hand", "hand")
 #: environment's (table, blocks): the distance kept (m), the distance at which the limit engages
 #: (m) and its gain. Without it, moving the arm to hold the fingertips swept the palm through the
 #: block it was about to grasp.
-AVOID_DISTANCE = 0.002
-AVOID_DETECTION = 0.02
+AVOID_DISTANCE = 0.003
+AVOID_DETECTION = 0.03
 AVOID_GAIN = 0.85
+#: The palm keeps this much further (m) from the blocks: under the hand's weight the arm's servos
+#: sag by a few millimetres, and a palm planned 3 mm above a block's top pressed on it.
+PALM_DISTANCE = 0.01
+#: How far (m) the iterates may come inside an avoided distance before a step is refused.
+CLEARANCE_SLACK = 0.001
 
 
 @dataclass(frozen=True)
@@ -185,17 +191,23 @@ class PostureResult:
     log_manipulability_end: float
     iterations: int
     unreachable: tuple[str, ...]
+    #: (k, 21) arm (5) and hand (16) joints of the IK's iterates, start to end: a path that keeps
+    #: the solver's limits (collision avoidance included) all along, for apply_posture to follow.
+    path: NDArray[np.float64] | None = None
 
 
-def robot_environment_pairs(
-    model: mujoco.MjModel, touchable: str | None = None
-) -> list[tuple[list[int], list[int]]]:
-    """Geom groups for collision avoidance: every colliding robot geom against every colliding
-    geom that is not the robot's (table top, blocks; not the floor the robot stands on). The
-    fingertip pads may touch the geom named ``touchable`` (the block to grasp): they are kept off
-    everything else, every other robot geom off everything."""
+def avoidance_groups(
+    model: mujoco.MjModel, touchable: str | None = None, *, fingers_may_touch: bool = False
+) -> list[tuple[list[tuple[list[int], list[int]]], float]]:
+    """Geom groups for collision avoidance, each with its distance to keep (m): every colliding
+    robot geom against every colliding geom that is not the robot's (table top, blocks; not the
+    floor the robot stands on), the palm from further (:data:`PALM_DISTANCE`). The fingertip pads
+    may touch the geom named ``touchable`` (the block to grasp), and with ``fingers_may_touch``
+    every finger link may (a grasp wraps the block; whether a link would press into it is for
+    :mod:`controllers.hand_reach` to judge)."""
     active = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
     pads = {model.geom(robot.hand_name(f"{f}_pad")).id for f in robot.FINGERS}
+    palm = model.body(robot.hand_name(robot.PALM_BODY)).id
     robot_geoms, env_geoms = [], []
     for g in np.flatnonzero(active):
         name = model.body(model.geom_bodyid[g]).name
@@ -203,11 +215,16 @@ def robot_environment_pairs(
             robot_geoms.append(int(g))
         elif model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
             env_geoms.append(int(g))
-    if touchable is None:
-        return [(robot_geoms, env_geoms)]
-    target = model.geom(touchable).id
-    others = [g for g in env_geoms if g != target]
-    return [(robot_geoms, others), ([g for g in robot_geoms if g not in pads], [target])]
+    palm_geoms = [g for g in robot_geoms if model.geom_bodyid[g] == palm]
+    others = [g for g in robot_geoms if g not in palm_geoms]
+    target = model.geom(touchable).id if touchable is not None else -1
+    rest = [g for g in env_geoms if g != target]
+    near = [(others, rest)]
+    if target >= 0:
+        hand = {g for g in others if model.body(model.geom_bodyid[g]).name.startswith(robot.HAND_PREFIX)}
+        allowed = hand if fingers_may_touch else pads
+        near.append(([g for g in others if g not in allowed], [target]))
+    return [(near, AVOID_DISTANCE), ([(palm_geoms, env_geoms)], PALM_DISTANCE)]
 
 
 def _frozen_dofs(model: mujoco.MjModel, idx: HandIndices, joints: str) -> list[int]:
@@ -230,6 +247,7 @@ def solve_posture(
     model: mujoco.MjModel | None = None,
     avoid_collisions: bool = False,
     touchable: str | None = None,
+    fingers_may_touch: bool = False,
     pad_centres: ArrayLike | None = None,
 ) -> PostureResult:
     """Kinematic posture control from the world's current state, or from ``qpos`` (the world is
@@ -295,16 +313,32 @@ def solve_posture(
             pads.append(task)
     tips_and_pads = tips + pads
     limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
+    avoidance: list[mink.CollisionAvoidanceLimit] = []
     if avoid_collisions:
-        limits.append(
-            mink.CollisionAvoidanceLimit(
-                model,
-                robot_environment_pairs(model, touchable),
-                gain=AVOID_GAIN,
-                minimum_distance_from_collisions=AVOID_DISTANCE,
-                collision_detection_distance=AVOID_DETECTION,
+        for pairs, distance in avoidance_groups(
+            model, touchable, fingers_may_touch=fingers_may_touch
+        ):
+            avoidance.append(
+                mink.CollisionAvoidanceLimit(
+                    model,
+                    pairs,
+                    gain=AVOID_GAIN,
+                    minimum_distance_from_collisions=distance,
+                    collision_detection_distance=distance + AVOID_DETECTION,
+                )
             )
-        )
+    limits += avoidance
+    fromto = np.zeros(6)
+
+    def clear() -> bool:
+        """Every avoided pair at least its distance apart (less CLEARANCE_SLACK): the limits
+        act on velocities only, to first order, and the iterates can creep past them."""
+        for limit in avoidance:
+            floor = limit.minimum_distance_from_collisions - CLEARANCE_SLACK
+            for g1, g2 in limit.geom_id_pairs:
+                if mujoco.mj_geomDistance(model, cfg.data, g1, g2, floor + 1e-3, fromto) < floor:
+                    return False
+        return True
     frozen = _frozen_dofs(model, idx, joints)
     constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
 
@@ -318,6 +352,13 @@ def solve_posture(
         )
         cfg.integrate_inplace(v, IK_DT)
 
+    arm_adr = model.jnt_qposadr[[model.joint(robot.qualified(j)).id for j in robot.ARM_JOINTS]]
+    hand_adr = idx.finger_qpos.ravel()
+
+    def snapshot() -> NDArray[np.float64]:
+        return np.concatenate([cfg.q[arm_adr], cfg.q[hand_adr]])
+
+    path = [snapshot()]
     m_start = log_manipulability(model, cfg.data, idx)
     iterations = 0
     pad_sites = np.array([model.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES])
@@ -334,6 +375,7 @@ def solve_posture(
             break
         last_pad = now_pad
         ik_step(tips_and_pads)
+        path.append(snapshot())
         iterations += 1
     err = tip_error()
     if err.max() < tolerance and optimize:
@@ -347,10 +389,11 @@ def solve_posture(
                 ik_step(tips_and_pads)
             iterations += 1
             value = log_manipulability(model, cfg.data, idx)
-            if tip_error().max() > 0.5 * tolerance or not value > history[-1]:
+            if tip_error().max() > 0.5 * tolerance or not value > history[-1] or not clear():
                 cfg.update(q_before)
                 break
             history.append(value)
+            path.append(snapshot())
             if (
                 len(history) > POSTURE_WINDOW
                 and history[-1] - history[-1 - POSTURE_WINDOW] < POSTURE_MIN_GAIN
@@ -369,6 +412,7 @@ def solve_posture(
         log_manipulability_end=log_manipulability(model, cfg.data, idx),
         iterations=iterations,
         unreachable=unreachable,
+        path=np.array(path),
     )
 
 
@@ -385,6 +429,8 @@ def world_log_manipulability(world: World) -> float:
 #: Time (s) over which servo targets move to a new posture, and the settling time after it.
 MOVE_TIME = 1.0
 SETTLE_TIME = 0.5
+#: A pad pressing on something with more than this (N) is in contact (see :func:`apply_posture`).
+CONTACT_FORCE = 0.05
 #: Steady-state servo error corrections after a move (see :func:`apply_posture`).
 SERVO_CORRECTIONS = 2
 
@@ -397,24 +443,36 @@ def apply_posture(
     settle: float = SETTLE_TIME,
     corrections: int = SERVO_CORRECTIONS,
 ) -> NDArray[np.float64]:
-    """Move the arm and hand servos linearly to ``result``'s posture over ``move_time`` s, let
-    them settle, and return the fingertip positions (4, 3) the simulation then has.
+    """Move the arm and hand servos to ``result``'s posture over ``move_time`` s along the IK's own
+    path of iterates (which kept the solver's limits, collision avoidance included, at every
+    step; a straight line in joint space between two collision-free postures need not), let them
+    settle, and return the fingertip positions (4, 3) the simulation then has.
 
     Position servos sag under gravity (the fingers' servos are soft); ``corrections`` times the
-    remaining steady-state joint error is added to the servo targets and the servos settle again.
+    remaining steady-state joint error is added to the servo targets and the servos settle again,
+    except for a finger whose pad presses on something: its error is the contact's doing, and
+    correcting it would push harder.
     """
-    arm0, hand0 = world.arm_targets(), world.hand_targets()
+    start = np.concatenate([world.arm_targets(), world.hand_targets()])
+    goal = np.concatenate([result.arm_q, result.hand_q])
+    waypoints = np.vstack([start, goal]) if result.path is None else np.vstack([start, result.path[1:], goal])
+    seg = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)])
     dt = world.model.opt.timestep
     n = max(1, round(move_time / dt))
     chunk = 10
+    n_arm = len(result.arm_q)
     for k in range(0, n, chunk):
-        s = min(1.0, (k + chunk) / n)
-        world.set_arm_targets(arm0 + s * (result.arm_q - arm0))
-        world.set_hand_targets(hand0 + s * (result.hand_q - hand0))
+        s = min(1.0, (k + chunk) / n) * arc[-1]
+        q = np.array([np.interp(s, arc, waypoints[:, j]) for j in range(waypoints.shape[1])])
+        world.set_arm_targets(q[:n_arm])
+        world.set_hand_targets(q[n_arm:])
         world.step(chunk)
     world.step(max(0, round(settle / dt)))
     for _ in range(corrections):
         world.set_arm_targets(world.arm_targets() + result.arm_q - world.arm_qpos())
-        world.set_hand_targets(world.hand_targets() + result.hand_q - world.hand_qpos())
+        free = np.repeat(pad_object_forces(world) <= CONTACT_FORCE, robot.JOINTS_PER_FINGER)
+        error = np.where(free, result.hand_q - world.hand_qpos(), 0.0)
+        world.set_hand_targets(world.hand_targets() + error)
         world.step(max(0, round(settle / dt)))
     return world.fingertip_positions()

@@ -12,9 +12,15 @@ import cv2
 import numpy as np
 
 from controllers.cspace import CollisionChecker
-from controllers.fine_reach import fine_reach, project_to_surface
+from controllers.fine_reach import (
+    GRASP_DEPTH,
+    SurfaceTargets,
+    contact_targets,
+    fine_reach,
+    project_to_surface,
+)
 from controllers.grasp.score import grasp_score
-from controllers.grasp.session import GraspSynthesis
+from controllers.grasp.session import GraspSynthesis, separate_contacts
 from controllers.grip import PRE_CONTACT, close, move_hand, plan_grip, release, squeeze
 from controllers.hand_reach import (
     MIN_PAD_SPACING,
@@ -271,12 +277,32 @@ def coarse_reach(ep: Episode) -> Step:
 def fine_reach_state(ep: Episode) -> Step:
     """Fine Reach: harmonic fields bring each fingertip near its projection on the perceived
     block's surface (a touch guard stops a finger that arrives early)."""
+    world = ep.world
+    # each fingertip's contact coordinate (its polar angle about the perceived centroid,
+    # Appendix B), the contacts kept a pad spacing apart: three fingers projected onto one small
+    # face would crowd each other
+    tips = world.fingertip_positions()
+    local = tips[:, :2] - np.asarray(ep.target.position_xy)
+    theta = np.arctan2(local[:, 1], local[:, 0]) - ep.target.yaw
+    theta = separate_contacts(
+        ep.target.polygon, theta, MIN_PAD_SPACING + SEPARATION_MARGIN, robot.PAD_RADIUS
+    )
+    spread = contact_targets(ep.target, theta)
+    z = np.clip(
+        tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH
+    )
+    targets = SurfaceTargets(
+        np.column_stack([spread.points[:, :2], z]), spread.normals, spread.theta
+    )
     result = fine_reach(
-        ep.world,
+        world,
         ep.target_name,
+        targets,
         seen=ep.target,
         tolerance=FINE_REACH_TOLERANCE,
         standoff=FINE_REACH_STANDOFF,
+        model=ep.planning,
+        touchable=PERCEIVED_GEOM,
     )
     worst = float(result.tip_error.max())
     if not result.reached and worst > FINE_REACH_GIVE_UP:
@@ -388,6 +414,17 @@ def posture_control(ep: Episode) -> Step:
 #: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
 #: differential IK finds the nearest posture, which may keep a finger on the wrong side.
 ROLL_SEEDS = (0.0, np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
+#: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's: a hand
+#: tilted further grips a block standing on the table at an angle.
+MAX_PALM_TILT = np.deg2rad(12.0)
+
+
+def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
+    """Angle (rad) between the palm's approach axis at ``arm_q`` and the coarse reach's."""
+    checker = CollisionChecker(ep.world, model=ep.planning)
+    _, R = checker.palm_pose(arm_q)
+    goal = ep.coarse.goal.palm_rotation[:, 2]
+    return float(np.arccos(np.clip(R[:, 2] @ goal, -1.0, 1.0)))
 
 
 def _reachable_posture(ep: Episode):
@@ -413,10 +450,13 @@ def _reachable_posture(ep: Episode):
             model=ep.planning,
             avoid_collisions=True,
             touchable=PERCEIVED_GEOM,
+            fingers_may_touch=True,
             pad_centres=centres,
             qpos=seed,
         )
         if not sol.reachable:
+            continue
+        if _palm_tilt(ep, sol.arm_q) > MAX_PALM_TILT:
             continue
         qpos = seed.copy()
         qpos[arm_adr] = sol.arm_q
@@ -533,6 +573,17 @@ def grasp_object(ep: Episode) -> Step:
     result = squeeze(world, ep.grip)
     ep.record.grip_forces = result.touch.round(3).tolist()
     ep.record.grip_target = result.target.round(3).tolist()
+    if not result.settled:
+        weak = [
+            f"{f} {t:.1f} N"
+            for f, t, g in zip(robot.FINGERS, result.touch, result.target, strict=True)
+            if t < 0.5 * g
+        ]
+        raise EpisodeFailure(
+            Failure.FINGERS_CANNOT_REACH,
+            f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
+            f"{result.target.mean():.1f} N)",
+        )
     return Step(
         State.DELIVER,
         f"all four pads touch; squeezed to {np.round(result.touch, 1).tolist()} N "

@@ -84,3 +84,20 @@ def finger_link_forces(world: World, body: int) -> dict[str, float]:
     for c in robot_contacts(world, body):
         out[c.finger] += c.normal_force
     return out
+
+
+def pad_object_forces(world: World) -> NDArray[np.float64]:
+    """(4,) normal force (N) between each fingertip pad (ff, mf, rf, th) and anything that is not
+    the robot: what a touch guard should react to. (The touch sensors also feel a fingertip
+    pressing another finger.)"""
+    m, d = world.model, world.data
+    pads = {m.geom(robot.hand_name(f"{f}_pad")).id: i for i, f in enumerate(robot.FINGERS)}
+    out = np.zeros(len(robot.FINGERS))
+    wrench = np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        for pad, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
+            if pad in pads and _robot_part(m.body(m.geom_bodyid[other]).name) is None:
+                mujoco.mj_contactForce(m, d, i, wrench)
+                out[pads[pad]] += abs(wrench[0])
+    return out
