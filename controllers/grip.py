@@ -132,7 +132,13 @@ def plan_grip(
         pre = p + standoff[:, None] * n
         pre_pads = pre + robot.PAD_RADIUS * n
         sol_pre = solve_posture(
-            world, pre, optimize=False, joints="hand", model=model, pad_centres=pre_pads, qpos=data_q
+            world,
+            pre,
+            optimize=False,
+            joints="hand",
+            model=model,
+            pad_centres=pre_pads,
+            qpos=data_q,
         )
         if prism is None:
             break

@@ -37,8 +37,12 @@ from hand_sim.world import World
 MIN_PAD_SPACING = 0.019
 #: A fingertip reaches its contact when its tip site ends this close (m) to the contact point.
 CONTACT_TOLERANCE = 0.002
-#: Largest angle (rad) between a fingertip's pad normal and the face's inward normal.
-MAX_PAD_ANGLE = np.deg2rad(65.0)
+#: Largest angle (rad) between a fingertip's pad normal and the face's inward normal. The pad
+#: normal is taken at the tip site, 30 deg from the palmar normal towards the tip, so 90 deg
+#: still puts the contact on the palmar half of the rounded tip (what the touch sensor feels);
+#: beyond, or more than MAX_PAD_SIDEWAYS sideways, the side or back of the fingertip would touch.
+MAX_PAD_ANGLE = np.deg2rad(90.0)
+MAX_PAD_SIDEWAYS = 0.8
 #: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
 MAX_LINK_PENETRATION = 0.0015
 #: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
@@ -50,7 +54,7 @@ POINTS_PER_LINK = 7
 IK_ITERATIONS = 250
 #: The fingers must reach this far (m) into the block past each contact point: a squeeze is a
 #: position servo target inside the surface, so a finger that can only just touch cannot grip.
-SQUEEZE_REACH = 0.006
+SQUEEZE_REACH = 0.004
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,6 +180,12 @@ def fingertips_at(model: mujoco.MjModel, qpos: ArrayLike) -> NDArray[np.float64]
     return data.site_xpos[sites].copy()
 
 
+def finger_sideways(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world direction of each distal link's sideways axis (its flexion axis, x)."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3)[:, 0] for b in bodies])
+
+
 def pad_normals(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
     """(4, 3) world pad normals (out of the pad) of the fingertips, order ff, mf, rf, th."""
     bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
@@ -233,6 +243,7 @@ def check_reach(
     mujoco.mj_kinematics(model, data)
     cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))
+    sideways = np.abs(np.einsum("fd,fd->f", finger_sideways(model, data), n))
     depth = link_penetration(model, data, prism)
     deepest = max(depth.values())
     reason = ""
@@ -248,8 +259,8 @@ def check_reach(
             f"{', '.join(sol.unreachable)} cannot reach (worst: {robot.FINGERS[worst]} "
             f"{sol.tip_error[worst] * 1000:.0f} mm short)"
         )
-    elif angle.max() > MAX_PAD_ANGLE:
-        worst = int(np.argmax(angle))
+    elif angle.max() > MAX_PAD_ANGLE or sideways.max() > MAX_PAD_SIDEWAYS:
+        worst = int(np.argmax(np.maximum(angle / MAX_PAD_ANGLE, sideways / MAX_PAD_SIDEWAYS)))
         reason = (
             f"{robot.FINGERS[worst]} would touch with the side of its fingertip "
             f"({np.degrees(angle[worst]):.0f} deg from the pad)"

@@ -221,7 +221,9 @@ def avoidance_groups(
     rest = [g for g in env_geoms if g != target]
     near = [(others, rest)]
     if target >= 0:
-        hand = {g for g in others if model.body(model.geom_bodyid[g]).name.startswith(robot.HAND_PREFIX)}
+        hand = {
+            g for g in others if model.body(model.geom_bodyid[g]).name.startswith(robot.HAND_PREFIX)
+        }
         allowed = hand if fingers_may_touch else pads
         near.append(([g for g in others if g not in allowed], [target]))
     return [(near, AVOID_DISTANCE), ([(palm_geoms, env_geoms)], PALM_DISTANCE)]
@@ -339,6 +341,7 @@ def solve_posture(
                 if mujoco.mj_geomDistance(model, cfg.data, g1, g2, floor + 1e-3, fromto) < floor:
                     return False
         return True
+
     frozen = _frozen_dofs(model, idx, joints)
     constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
 
@@ -455,7 +458,11 @@ def apply_posture(
     """
     start = np.concatenate([world.arm_targets(), world.hand_targets()])
     goal = np.concatenate([result.arm_q, result.hand_q])
-    waypoints = np.vstack([start, goal]) if result.path is None else np.vstack([start, result.path[1:], goal])
+    waypoints = (
+        np.vstack([start, goal])
+        if result.path is None
+        else np.vstack([start, result.path[1:], goal])
+    )
     seg = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(seg)])
     dt = world.model.opt.timestep

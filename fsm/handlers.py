@@ -30,7 +30,13 @@ from controllers.hand_reach import (
 )
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
 from controllers.posture import HandIndices, apply_posture, solve_posture
-from controllers.reach import APPROACHES, ReachTarget, execute_path, plan_coarse_reach, plan_delivery
+from controllers.reach import (
+    APPROACHES,
+    ReachTarget,
+    execute_path,
+    plan_coarse_reach,
+    plan_delivery,
+)
 from controllers.errors import ReachError
 from controllers.transport import (
     carry,
@@ -224,7 +230,9 @@ def select_model(ep: Episode) -> Step:
     true_pos = world.block_pose(name)[0]
     record.polygon_error = {
         "centroid_mm": float(np.linalg.norm(model.centroid[:2] - true_pos[:2]) * 1000),
-        "area_percent": float(abs(model.polygon.area - truth.polygon.area) / truth.polygon.area * 100),
+        "area_percent": float(
+            abs(model.polygon.area - truth.polygon.area) / truth.polygon.area * 100
+        ),
         "edges": float(model.n_edges),
         "true_edges": float(truth.polygon.n_edges),
     }
@@ -288,9 +296,7 @@ def fine_reach_state(ep: Episode) -> Step:
         ep.target.polygon, theta, MIN_PAD_SPACING + SEPARATION_MARGIN, robot.PAD_RADIUS
     )
     spread = contact_targets(ep.target, theta)
-    z = np.clip(
-        tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH
-    )
+    z = np.clip(tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH)
     targets = SurfaceTargets(
         np.column_stack([spread.points[:, :2], z]), spread.normals, spread.theta
     )
@@ -315,7 +321,11 @@ def fine_reach_state(ep: Episode) -> Step:
     return Step(
         State.POSTURE_CONTROL,
         f"fingertips {np.round(result.tip_error * 1000, 1).tolist()} mm from their targets"
-        + (f", stopped on touch: {', '.join(result.stopped_on_touch)}" if result.stopped_on_touch else ""),
+        + (
+            f", stopped on touch: {', '.join(result.stopped_on_touch)}"
+            if result.stopped_on_touch
+            else ""
+        ),
     )
 
 
@@ -383,7 +393,8 @@ def posture_control(ep: Episode) -> Step:
             ep.record.fine_reach_loops += 1
             return Step(State.FINE_REACH, f"fingertips drifted {drift * 1000:.1f} mm")
         return Step(
-            State.WRENCH_CLOSURE, f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm"
+            State.WRENCH_CLOSURE,
+            f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm",
         )
     # contacts mode: make the virtual contacts reachable, trying the wrist roll in steps
     found = _reachable_posture(ep)
@@ -395,28 +406,33 @@ def posture_control(ep: Episode) -> Step:
                 f"contacts ({ep.reach.reason if ep.reach is not None else 'unreachable'})",
             )
         return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
-    qpos, contacts, roll = found
+    qpos, contacts, label = found
     ep.contacts = contacts
     m = world.model
     arm_q = qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]]
     pre, pre_pads = grip_targets(contacts.points, contacts.normals, -PRE_CONTACT)
     hand_pre = solve_posture(
-        world, pre, optimize=False, joints="hand", model=ep.planning, pad_centres=pre_pads, qpos=qpos
+        world,
+        pre,
+        optimize=False,
+        joints="hand",
+        model=ep.planning,
+        pad_centres=pre_pads,
+        qpos=qpos,
     ).hand_q
     _reposition(ep, arm_q, hand_pre)
     return Step(
         State.WRENCH_CLOSURE,
-        f"arm reconfigured (wrist roll {np.degrees(roll):+.0f} deg tried first) so that the "
-        "contacts are within reach",
+        f"arm reconfigured (search from {label}) so that the contacts are within reach",
     )
 
 
 #: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
 #: differential IK finds the nearest posture, which may keep a finger on the wrong side.
-ROLL_SEEDS = (0.0, np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
+ROLL_SEEDS = tuple(np.deg2rad([0, 30, -30, 60, -60, 90, -90, 120, -120, 180]))
 #: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's: a hand
 #: tilted further grips a block standing on the table at an angle.
-MAX_PALM_TILT = np.deg2rad(12.0)
+MAX_PALM_TILT = np.deg2rad(35.0)
 
 
 def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
@@ -427,18 +443,62 @@ def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
     return float(np.arccos(np.clip(R[:, 2] @ goal, -1.0, 1.0)))
 
 
-def _reachable_posture(ep: Episode):
-    """An arm and hand configuration (qpos) from which the current contacts are reachable, with
-    the contacts given to the fingers, and the roll seed it started from; None if none is."""
+def _posture_seeds(ep: Episode) -> list[tuple[str, np.ndarray]]:
+    """Start configurations of Posture Control's search, with a label: for a top grasp the
+    wrist roll in steps (the arm's differential IK finds the nearest posture, which may keep a
+    finger on the wrong side of the block); for a lateral grasp the hand in its present shape
+    and in :data:`LATERAL_PINCH`, with the palm where it is and backed off along its axis."""
     world = ep.world
     m = world.model
-    roll_adr = m.jnt_qposadr[m.joint(robot.qualified("wrist_roll")).id]
+    roll_j = m.joint(robot.qualified("wrist_roll")).id
+    roll_adr = m.jnt_qposadr[roll_j]
+    lo, hi = m.jnt_range[roll_j]
+    hand_adr = HandIndices.of(m).finger_qpos.ravel()
+    seeds = []
+    if ep.coarse.approach == "top":
+        for roll in ROLL_SEEDS:
+            seed = world.data.qpos.copy()
+            seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
+            seeds.append((f"wrist roll {np.degrees(roll):+.0f} deg", seed))
+        return seeds
+    checker = CollisionChecker(world, model=ep.planning)
+    arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    q_arm = world.data.qpos[arm_adr]
+    p, R = checker.palm_pose(q_arm)
+    for back in LATERAL_BACKOFFS:
+        arm = checker.solve_ik(p - back * R[:, 2], R, q_arm)
+        if not arm.found:
+            continue
+        for label, hand in (("present hand", None), ("pinch", np.asarray(LATERAL_PINCH))):
+            seed = world.data.qpos.copy()
+            seed[arm_adr] = arm.q
+            if hand is not None:
+                seed[hand_adr] = hand
+            seeds.append((f"{label}, palm backed off {back * 100:.0f} cm", seed))
+    return seeds
+
+
+#: A lateral pinch of the hand (ff, mf, rf, th; abduction, MCP, PIP, DIP, rad):
+#: ``benchmarks.hand_reachability``'s best lateral grasp of the rectangle (S_G 0.002; 3000 hand
+#: samples, seed 0): first and middle finger on one long face, ring finger and thumb on the other.
+LATERAL_PINCH = (
+    -0.61, 1.56, 0.87, 0.14,
+    -0.69, 0.48, 1.53, 0.32,
+    0.64, 1.05, 1.31, 0.18,
+    -0.82, 0.55, 0.61, 1.15,
+)  # fmt: skip
+#: How far (m) a lateral Posture Control search backs the palm off its approach to start from.
+LATERAL_BACKOFFS = (0.0, 0.02)
+
+
+def _reachable_posture(ep: Episode):
+    """An arm and hand configuration (qpos) from which the current contacts are reachable, with
+    the contacts given to the fingers, and the seed it started from; None if none is."""
+    world = ep.world
+    m = world.model
     arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
     hand_adr = HandIndices.of(m).finger_qpos.ravel()
-    lo, hi = m.jnt_range[m.joint(robot.qualified("wrist_roll")).id]
-    for roll in ROLL_SEEDS:
-        seed = world.data.qpos.copy()
-        seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
+    for label, seed in _posture_seeds(ep):
         contacts, _ = reachable_contacts(
             world, ep.prism, ep.target, ep.synthesis.theta, model=ep.planning, qpos=seed, tries=1
         )
@@ -462,11 +522,16 @@ def _reachable_posture(ep: Episode):
         qpos[arm_adr] = sol.arm_q
         qpos[hand_adr] = sol.hand_q
         contacts, reach = reachable_contacts(
-            world, ep.prism, ep.target, ep.synthesis.theta, model=ep.planning, qpos=qpos,
+            world,
+            ep.prism,
+            ep.target,
+            ep.synthesis.theta,
+            model=ep.planning,
+            qpos=qpos,
             check_spacing=False,
         )
         if reach.reachable:
-            return qpos, contacts, roll
+            return qpos, contacts, label
     return None
 
 
@@ -622,7 +687,11 @@ def deliver(ep: Episode) -> Step:
             f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
             f"touch {np.round(world.touch(), 2).tolist()} N",
         )
-    log(State.DELIVER.value, State.DELIVER.value, f"lifted: block rose {lifted.block_rise * 100:.1f} cm")
+    log(
+        State.DELIVER.value,
+        State.DELIVER.value,
+        f"lifted: block rose {lifted.block_rise * 100:.1f} cm",
+    )
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     if not plan.found:
         raise EpisodeFailure(Failure.PLACE_UNREACHABLE, plan.reason)
@@ -695,4 +764,3 @@ HANDLERS: dict[State, Handler] = {
     State.GRASP_OBJECT: grasp_object,
     State.DELIVER: deliver,
 }
-

@@ -94,7 +94,9 @@ def judge(
     err = float(np.linalg.norm(pos[:2] - np.asarray(place, dtype=float)))
     tilt = tilt_degrees(quat)
     speed, spin = block_velocity(world, block)
-    touching = any(c.finger in robot.FINGERS for c in robot_contacts(world, world.block_body_id(block)))
+    touching = any(
+        c.finger in robot.FINGERS for c in robot_contacts(world, world.block_body_id(block))
+    )
     palm = palm_distance(world, block)
     moved = {
         name: float(np.linalg.norm(world.block_pose(name)[0][:2] - p[:2]))

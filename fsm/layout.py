@@ -50,7 +50,8 @@ def episode_scene(name: str, seed: int, blocks: int | None = None) -> Scene:
             dataclasses.replace(
                 b,
                 position=tuple(
-                    float(v) for v in np.asarray(b.position) + rng.uniform(-1, 1, 2) * JITTER_POSITION
+                    float(v)
+                    for v in np.asarray(b.position) + rng.uniform(-1, 1, 2) * JITTER_POSITION
                 ),
                 yaw=b.yaw + math.radians(float(rng.uniform(-1, 1)) * JITTER_YAW_DEG),
             )

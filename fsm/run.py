@@ -59,7 +59,9 @@ def parse_pair(text: str, flag: str) -> tuple[float, float]:
     try:
         a, b = (float(p) for p in parts)
     except ValueError:
-        raise BadInput(f"{flag} takes two numbers as A,B (e.g. {flag} 0.1,-0.2), got {text!r}") from None
+        raise BadInput(
+            f"{flag} takes two numbers as A,B (e.g. {flag} 0.1,-0.2), got {text!r}"
+        ) from None
     if not (math.isfinite(a) and math.isfinite(b)):
         raise BadInput(f"{flag} needs finite numbers, got {text!r}")
     return a, b
@@ -72,20 +74,67 @@ def parser() -> argparse.ArgumentParser:
         "of Coelho & Grupen): writes DIR/episode.rrd (open with `rerun`) and DIR/summary.json.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    ap.add_argument("--scene", default="clutter3", help=f"scene name ({', '.join(scene_names())}, random) or a .toml path")
-    ap.add_argument("--seed", default="0", help="seed: draws a random scene; jitters a scene file's layout when > 0; seeds the controller's noise")
-    ap.add_argument("--blocks", default=None, help="number of blocks of --scene random (1-12; default from scenes/random.toml)")
+    ap.add_argument(
+        "--scene",
+        default="clutter3",
+        help=f"scene name ({', '.join(scene_names())}, random) or a .toml path",
+    )
+    ap.add_argument(
+        "--seed",
+        default="0",
+        help="seed: draws a random scene; jitters a scene file's layout when > 0; seeds the controller's noise",
+    )
+    ap.add_argument(
+        "--blocks",
+        default=None,
+        help="number of blocks of --scene random (1-12; default from scenes/random.toml)",
+    )
     pick = ap.add_mutually_exclusive_group()
-    pick.add_argument("--pick", default=None, help="name of the block to pick first (default: the scene's target)")
-    pick.add_argument("--pick-pixel", default=None, metavar="U,V", help=f"pick the block at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image (u = column, v = row)")
+    pick.add_argument(
+        "--pick", default=None, help="name of the block to pick first (default: the scene's target)"
+    )
+    pick.add_argument(
+        "--pick-pixel",
+        default=None,
+        metavar="U,V",
+        help=f"pick the block at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image (u = column, v = row)",
+    )
     place = ap.add_mutually_exclusive_group()
-    place.add_argument("--place", default=None, metavar="X,Y", help="world point (m) to place the block at (default: the scene's place point)")
-    place.add_argument("--place-pixel", default=None, metavar="U,V", help=f"place at the table point seen at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image")
-    ap.add_argument("--controller", default="pi", choices=CONTROLLERS, help="grasp controller: pre-imaging (section 4), knowledge-based (3.6.1) or Q-learning (3.6.2)")
-    ap.add_argument("--approach", default="auto", choices=APPROACH_CHOICES, help="auto: the coarse planner chooses top or lateral; or force one")
-    ap.add_argument("--cycles", default="1", help="blocks to pick and place one after another, or 'all' to clear the table")
+    place.add_argument(
+        "--place",
+        default=None,
+        metavar="X,Y",
+        help="world point (m) to place the block at (default: the scene's place point)",
+    )
+    place.add_argument(
+        "--place-pixel",
+        default=None,
+        metavar="U,V",
+        help=f"place at the table point seen at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image",
+    )
+    ap.add_argument(
+        "--controller",
+        default="pi",
+        choices=CONTROLLERS,
+        help="grasp controller: pre-imaging (section 4), knowledge-based (3.6.1) or Q-learning (3.6.2)",
+    )
+    ap.add_argument(
+        "--approach",
+        default="auto",
+        choices=APPROACH_CHOICES,
+        help="auto: the coarse planner chooses top or lateral; or force one",
+    )
+    ap.add_argument(
+        "--cycles",
+        default="1",
+        help="blocks to pick and place one after another, or 'all' to clear the table",
+    )
     ap.add_argument("--out", default=None, help="output folder (default runs/<scene>-<seed>)")
-    ap.add_argument("--models", default=None, help="folder of trained models from `python -m controllers.grasp reproduce --out DIR` (default: the shipped ones)")
+    ap.add_argument(
+        "--models",
+        default=None,
+        help="folder of trained models from `python -m controllers.grasp reproduce --out DIR` (default: the shipped ones)",
+    )
     ap.add_argument("--no-record", action="store_true", help="skip the .rrd recording (faster)")
     return ap
 
@@ -103,7 +152,9 @@ def _int(text: str, flag: str, lo: int, hi: int | None = None) -> int:
 
 def _check_out(text: str | None, scene: str, seed: int) -> Path:
     if text is not None and text.strip() in ("", "/"):
-        raise BadInput(f"--out {text!r} is not a folder to write into; give a folder such as runs/mine")
+        raise BadInput(
+            f"--out {text!r} is not a folder to write into; give a folder such as runs/mine"
+        )
     stem = Path(scene).stem if scene.endswith(".toml") else scene
     out = Path(text) if text is not None else Path("runs") / f"{stem}-{seed}"
     if out.exists() and not out.is_dir():
@@ -113,11 +164,15 @@ def _check_out(text: str | None, scene: str, seed: int) -> Path:
         with tempfile.NamedTemporaryFile(dir=out, prefix=".write-test-"):
             pass
     except OSError as e:
-        raise BadInput(f"--out {out} cannot be written ({e.strerror}); choose another folder") from None
+        raise BadInput(
+            f"--out {out} cannot be written ({e.strerror}); choose another folder"
+        ) from None
     return out
 
 
-def _check_place(scene: Scene, place: tuple[float, float], target_radius: float, target: str) -> None:
+def _check_place(
+    scene: Scene, place: tuple[float, float], target_radius: float, target: str
+) -> None:
     t = scene.table
     if not t.contains(np.array([place]), margin=target_radius):
         raise BadInput(
@@ -133,7 +188,9 @@ def _check_place(scene: Scene, place: tuple[float, float], target_radius: float,
         )
     footprints = [b.footprint() for b in scene.blocks if b.name != target]
     if not place_is_free(np.asarray(place), target_radius, footprints, t, ASKED_CLEARANCE):
-        raise BadInput(f"place point {list(place)} is occupied: another block is within reach of it")
+        raise BadInput(
+            f"place point {list(place)} is occupied: another block is within reach of it"
+        )
 
 
 def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
@@ -151,9 +208,13 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         raise BadInput(str(e).rstrip(".")) from None
     pick = args.pick
     if pick is not None and pick not in scene.block_names:
-        raise BadInput(f"--pick {pick!r} is not a block of {scene.name}; valid: {', '.join(scene.block_names)}")
+        raise BadInput(
+            f"--pick {pick!r} is not a block of {scene.name}; valid: {', '.join(scene.block_names)}"
+        )
     pick_pixel = None if args.pick_pixel is None else parse_pair(args.pick_pixel, "--pick-pixel")
-    place_pixel = None if args.place_pixel is None else parse_pair(args.place_pixel, "--place-pixel")
+    place_pixel = (
+        None if args.place_pixel is None else parse_pair(args.place_pixel, "--place-pixel")
+    )
     for pixel, flag in ((pick_pixel, "--pick-pixel"), (place_pixel, "--place-pixel")):
         if pixel is not None and not (0 <= pixel[0] < IMAGE_WIDTH and 0 <= pixel[1] < IMAGE_HEIGHT):
             raise BadInput(
@@ -239,7 +300,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
     else:
         print(f"FAILED: {result.failure}: {result.failure_detail}")
-    print(f"sim {result.sim_time:.1f} s, wall {result.wall_time:.1f} s; wrote {summary}" + (f" and {rrd}" if options.record else ""))
+    print(
+        f"sim {result.sim_time:.1f} s, wall {result.wall_time:.1f} s; wrote {summary}"
+        + (f" and {rrd}" if options.record else "")
+    )
     return 0 if result.success else 1
 
 
