@@ -159,10 +159,7 @@ def obstacle_grid(
     nodes = spec.node_configs()
     free = nodes[:, 2] > world.scene.table.height + OBSTACLE_MARGIN
     for block in world.scene.blocks:
-        if block.name == target_name:
-            other = target
-        else:
-            other = ReachTarget.from_world(world, block.name)
+        other = target if block.name == target_name else ReachTarget.from_world(world, block.name)
         verts, normals = _world_edges(other)
         signed = (nodes[:, None, :2] - verts[None]) @ normals.T  # (N, k, k)
         edge_dist = np.einsum("nkk->nk", signed)
@@ -259,8 +256,9 @@ def fine_reach(
     whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`) stops where it
     is, so a finger arriving early does not push the block before the others arrive.
 
-    ``model`` (e.g. the planning model holding the perceived block, :mod:`controllers.planning_model`)
-    turns on collision avoidance in the IK: the hand's links keep clear of the table and the
+    ``model`` (e.g. the planning model holding the perceived block,
+    :mod:`controllers.planning_model`) turns on collision avoidance in the IK: the hand's links
+    keep clear of the table and the
     blocks, and only the pads may touch the geom named ``touchable``."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")

@@ -37,11 +37,11 @@ from hand_sim.world import World
 MIN_PAD_SPACING = 0.019
 #: A fingertip reaches its contact when its tip site ends this close (m) to the contact point.
 CONTACT_TOLERANCE = 0.002
-#: Largest angle (rad) between a fingertip's pad normal and the face's inward normal. The pad
-#: normal is taken at the tip site, 30 deg from the palmar normal towards the tip, so 90 deg
-#: still puts the contact on the palmar half of the rounded tip (what the touch sensor feels);
-#: beyond, or more than MAX_PAD_SIDEWAYS sideways, the side or back of the fingertip would touch.
-MAX_PAD_ANGLE = np.deg2rad(90.0)
+#: Largest angle (rad) between a fingertip's pad normal and the face's inward normal (the pad
+#: normal is taken at the tip site, 30 deg from the palmar normal towards the tip), and the
+#: largest component of the face normal along the fingertip's sideways axis: beyond either, the
+#: side of the fingertip, not its pad, would touch.
+MAX_PAD_ANGLE = np.deg2rad(65.0)
 MAX_PAD_SIDEWAYS = 0.8
 #: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
 MAX_LINK_PENETRATION = 0.0015
@@ -54,7 +54,7 @@ POINTS_PER_LINK = 7
 IK_ITERATIONS = 250
 #: The fingers must reach this far (m) into the block past each contact point: a squeeze is a
 #: position servo target inside the surface, so a finger that can only just touch cannot grip.
-SQUEEZE_REACH = 0.004
+SQUEEZE_REACH = 0.006
 
 
 @dataclass(frozen=True, eq=False)

@@ -68,7 +68,7 @@ AVOID_DETECTION = 0.03
 AVOID_GAIN = 0.85
 #: The palm keeps this much further (m) from the blocks: under the hand's weight the arm's servos
 #: sag by a few millimetres, and a palm planned 3 mm above a block's top pressed on it.
-PALM_DISTANCE = 0.01
+PALM_DISTANCE = 0.003
 #: How far (m) the iterates may come inside an avoided distance before a step is refused.
 CLEARANCE_SLACK = 0.001
 

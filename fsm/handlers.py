@@ -1,17 +1,18 @@
 """One function per state of the task cycle (section 5.2): each calls into ``vision`` and
 ``controllers``, updates the :class:`~fsm.context.Episode` and returns the next state with the
-reason for the transition, or raises :class:`EpisodeFailure` with a named reason."""
+reason for the transition, or raises :class:`TaskFailedError` with a named reason."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
 from controllers.fine_reach import (
     GRASP_DEPTH,
     SurfaceTargets,
@@ -37,7 +38,6 @@ from controllers.reach import (
     plan_coarse_reach,
     plan_delivery,
 )
-from controllers.errors import ReachError
 from controllers.transport import (
     carry,
     held_load,
@@ -93,7 +93,7 @@ DROP_SHARE = 0.3
 G = 9.81
 
 
-class EpisodeFailure(Exception):
+class TaskFailedError(Exception):
     """A state ends the episode: ``failure`` names the reason, ``detail`` says more."""
 
     def __init__(self, failure: Failure, detail: str = "") -> None:
@@ -162,7 +162,7 @@ def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -
     first = np.asarray(ep.options.place if ep.options.place is not None else scene.place)
     if ep.cycle == 0:
         if not place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
-            raise EpisodeFailure(
+            raise TaskFailedError(
                 Failure.PLACE_UNREACHABLE,
                 f"place point {first.round(3).tolist()} is occupied by another block",
             )
@@ -170,7 +170,7 @@ def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -
     reach = (robot_base_xy(ep), 0.35, 0.95)
     slot = free_slot(first, radius, footprints, scene.table, reach)
     if slot is None:
-        raise EpisodeFailure(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
+        raise TaskFailedError(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
     return slot
 
 
@@ -205,16 +205,16 @@ def select_model(ep: Episode) -> Step:
     except LookupError:
         return Step(State.DONE, "no block left to pick")
     except NotABlockError as e:
-        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
     except VisionError as e:
-        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
     try:
         model = ep.selection.model(index)
     except VisionError as e:
-        raise EpisodeFailure(Failure.POLYGON_NOT_MODELLED, str(e)) from e
+        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, str(e)) from e
     name = ep.selection.names[index]
     if name is None:
-        raise EpisodeFailure(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
     record.block = name
     ep.model = model
     world = ep.world
@@ -257,7 +257,8 @@ def select_model(ep: Episode) -> Step:
     return Step(
         State.COARSE_REACH,
         f"picked {name}: {model.n_edges} edges, centroid "
-        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, yaw {np.degrees(model.yaw):.0f} deg; "
+        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
+        f"yaw {np.degrees(model.yaw):.0f} deg; "
         f"place at ({ep.place[0]:.3f}, {ep.place[1]:.3f})",
     )
 
@@ -269,7 +270,7 @@ def coarse_reach(ep: Episode) -> Step:
     approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
     plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     if not plan.found:
-        raise EpisodeFailure(Failure.NO_COARSE_PATH, plan.reason)
+        raise TaskFailedError(Failure.NO_COARSE_PATH, plan.reason)
     ep.coarse = plan
     ep.record.approach = plan.approach
     run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
@@ -313,7 +314,7 @@ def fine_reach_state(ep: Episode) -> Step:
     worst = float(result.tip_error.max())
     if not result.reached and worst > FINE_REACH_GIVE_UP:
         finger = robot.FINGERS[int(np.argmax(result.tip_error))]
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.FINGERS_CANNOT_REACH,
             f"{finger} stayed {worst * 1000:.0f} mm from its surface point",
         )
@@ -400,7 +401,7 @@ def posture_control(ep: Episode) -> Step:
     found = _reachable_posture(ep)
     if found is None:
         if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
-            raise EpisodeFailure(
+            raise TaskFailedError(
                 Failure.CONTACT_UNREACHABLE,
                 f"after {ep.record.posture_retries} posture retries no arm posture reaches the "
                 f"contacts ({ep.reach.reason if ep.reach is not None else 'unreachable'})",
@@ -430,9 +431,9 @@ def posture_control(ep: Episode) -> Step:
 #: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
 #: differential IK finds the nearest posture, which may keep a finger on the wrong side.
 ROLL_SEEDS = tuple(np.deg2rad([0, 30, -30, 60, -60, 90, -90, 120, -120, 180]))
-#: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's: a hand
-#: tilted further grips a block standing on the table at an angle.
-MAX_PALM_TILT = np.deg2rad(35.0)
+#: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's, per
+#: approach: a hand tilted further grips a block standing on the table at an angle.
+MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
 
 
 def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
@@ -516,7 +517,7 @@ def _reachable_posture(ep: Episode):
         )
         if not sol.reachable:
             continue
-        if _palm_tilt(ep, sol.arm_q) > MAX_PALM_TILT:
+        if _palm_tilt(ep, sol.arm_q) > MAX_PALM_TILT[ep.coarse.approach]:
             continue
         qpos = seed.copy()
         qpos[arm_adr] = sol.arm_q
@@ -571,13 +572,13 @@ def wrench_closure(ep: Episode) -> Step:
         )
         ep.contacts, ep.reach = contacts, reach
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
-            raise EpisodeFailure(Failure.CONTACT_UNREACHABLE, reach.reason)
+            raise TaskFailedError(Failure.CONTACT_UNREACHABLE, reach.reason)
         if ep.recorder is not None:
             ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
         if not reach.reachable:
             record.reach_reasons.append(reach.reason)
             if record.posture_retries >= MAX_POSTURE_RETRIES:
-                raise EpisodeFailure(
+                raise TaskFailedError(
                     Failure.CONTACT_UNREACHABLE,
                     f"after {record.posture_retries} posture retries: {reach.reason}",
                 )
@@ -592,12 +593,12 @@ def wrench_closure(ep: Episode) -> Step:
     record.contacts = ep.contacts.points.round(5).tolist()
     record.contact_theta = ep.contacts.theta.round(5).tolist()
     if not syn.converged:
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
         )
     if not score.success:
         what = f"S_G {score.s_g:.3f} > 0.4" if score.feasible else "no feasible grasp (S_G LP)"
-        raise EpisodeFailure(Failure.GRASP_NOT_CONVERGED, f"converged to a weak grasp: {what}")
+        raise TaskFailedError(Failure.GRASP_NOT_CONVERGED, f"converged to a weak grasp: {what}")
     return Step(
         State.GRASP_OBJECT,
         f"converged in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
@@ -632,7 +633,7 @@ def grasp_object(ep: Episode) -> Step:
     closing = close(world, ep.grip)
     if not closing.all_touched:
         missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.FINGERS_CANNOT_REACH, f"{', '.join(missing)} did not touch the block"
         )
     result = squeeze(world, ep.grip)
@@ -644,7 +645,7 @@ def grasp_object(ep: Episode) -> Step:
             for f, t, g in zip(robot.FINGERS, result.touch, result.target, strict=True)
             if t < 0.5 * g
         ]
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.FINGERS_CANNOT_REACH,
             f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
             f"{result.target.mean():.1f} N)",
@@ -657,7 +658,7 @@ def grasp_object(ep: Episode) -> Step:
 
 
 # --- Deliver ------------------------------------------------------------------------------------
-class _Dropped(Exception):
+class _DroppedError(Exception):
     pass
 
 
@@ -682,7 +683,7 @@ def deliver(ep: Episode) -> Step:
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
     load = held_load(world, ep.empty_hand_force)
     if load < MIN_HELD_SHARE * ep.expected_load or (world.touch() <= 0.0).sum() > 1:
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.SLIPPED_DURING_LIFT,
             f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
             f"touch {np.round(world.touch(), 2).tolist()} N",
@@ -694,7 +695,7 @@ def deliver(ep: Episode) -> Step:
     )
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     if not plan.found:
-        raise EpisodeFailure(Failure.PLACE_UNREACHABLE, plan.reason)
+        raise TaskFailedError(Failure.PLACE_UNREACHABLE, plan.reason)
 
     loads: deque[float] = deque(maxlen=DROP_WINDOW)
     lost: deque[bool] = deque(maxlen=DROP_WINDOW)
@@ -707,19 +708,19 @@ def deliver(ep: Episode) -> Step:
         lost.append(int((w.touch() > 0.0).sum()) < 2)
         full = len(loads) == DROP_WINDOW
         if full and (np.mean(loads) < DROP_SHARE * ep.expected_load or all(lost)):
-            raise _Dropped
+            raise _DroppedError
 
     try:
         carry(world, plan.path, ep.grip, on_period=watch)
-    except _Dropped as e:
-        raise EpisodeFailure(
+    except _DroppedError as e:
+        raise TaskFailedError(
             Failure.DROPPED_IN_TRANSPORT,
             f"the wrist sensor lost the block's weight at t = {world.time:.2f} s",
         ) from e
     log(State.DELIVER.value, State.DELIVER.value, "carried to the place point; lowering")
     down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
     if not down.supported:
-        raise EpisodeFailure(
+        raise TaskFailedError(
             Failure.SET_DOWN_NOT_SENSED,
             f"lowered {down.lowered * 100:.1f} cm; the hand still holds {down.load_after:.2f} N",
         )
@@ -741,7 +742,7 @@ def deliver(ep: Episode) -> Step:
         "reasons": list(verdict.reasons),
     }
     if not verdict.success:
-        raise EpisodeFailure(Failure.NOT_PLACED, "; ".join(verdict.reasons))
+        raise TaskFailedError(Failure.NOT_PLACED, "; ".join(verdict.reasons))
     record.success = True
     ep.delivered.append(name)
     summary = (

@@ -33,7 +33,7 @@ MAX_OTHER_MOTION = 0.01  #: m
 def tilt_degrees(quat: ArrayLike) -> float:
     """Angle (deg) between a body's z axis and the world's z axis, from its (w, x, y, z)
     quaternion."""
-    w, x, y, z = np.asarray(quat, dtype=float)
+    _, x, y, _ = np.asarray(quat, dtype=float)
     cos_tilt = 1.0 - 2.0 * (x * x + y * y)
     return float(np.degrees(np.arccos(np.clip(cos_tilt, -1.0, 1.0))))
 

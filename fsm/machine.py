@@ -22,7 +22,7 @@ import numpy as np
 from controllers.errors import ReachError
 from controllers.grasp.registry import make_composer
 from fsm.context import Episode, EpisodeOptions, out_paths
-from fsm.handlers import HANDLERS, EpisodeFailure
+from fsm.handlers import HANDLERS, TaskFailedError
 from fsm.layout import episode_scene
 from fsm.states import TRANSITIONS, Failure, State, allowed
 from hand_sim.errors import SimulationError
@@ -32,7 +32,7 @@ from hand_sim.world import World
 CYCLE_BUDGET = 150.0
 
 
-class BudgetExceeded(Exception):
+class BudgetExceededError(Exception):
     """A state ran past its simulated-time budget."""
 
 
@@ -111,17 +111,18 @@ class Clock:
         if self.recorder is not None:
             self.recorder.tick(world)
         if self.budget and world.time - self.state_start > self.budget:
-            raise BudgetExceeded(
-                f"{world.time - self.state_start:.1f} s of simulated time (budget {self.budget:g} s)"
+            raise BudgetExceededError(
+                f"{world.time - self.state_start:.1f} s of simulated time "
+                f"(budget {self.budget:g} s)"
             )
 
 
 def _failure_for(state: State, error: Exception) -> tuple[Failure, str]:
-    if isinstance(error, EpisodeFailure):
+    if isinstance(error, TaskFailedError):
         return error.failure, error.detail
     if isinstance(error, SimulationError):
         return Failure.SIMULATION_UNSTABLE, str(error)
-    if isinstance(error, BudgetExceeded):
+    if isinstance(error, BudgetExceededError):
         return Failure.TIME_BUDGET_EXCEEDED, f"{state.value}: {error}"
     if isinstance(error, ReachError):
         mapping = {
@@ -182,7 +183,7 @@ def run_episode(
             try:
                 step = HANDLERS[state](ep)
                 following, reason = step.next, step.reason
-            except (EpisodeFailure, SimulationError, BudgetExceeded, ReachError) as e:
+            except (TaskFailedError, SimulationError, BudgetExceededError, ReachError) as e:
                 failure, detail = _failure_for(state, e)
                 following, reason = State.FAILED, f"{failure.value}: {detail}"
                 result.failure, result.failure_detail = failure.value, detail

@@ -35,7 +35,6 @@ from controllers.grasp.trials import (
     control_state,
 )
 
-
 #: Passes of :func:`separate_contacts` at most.
 SEPARATION_PASSES = 30
 
