@@ -112,7 +112,7 @@ def test_synthesis_without_separation_is_the_papers_controller() -> None:
     assert syn.finish().s_g == pytest.approx(batch.s_g[0])
 
 
-# --- whole episodes ---------------------------------------------------------------------------------
+# --- whole episodes ------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def clutter3_episode(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("clutter3")
