@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from controllers.fine_reach import (
+    GRASP_DEPTH,
     OBSTACLE_MARGIN,
+    TOUCH_STANDOFF,
     contact_targets,
     fine_reach,
     fingertip_fields,
@@ -47,7 +49,7 @@ def test_projection_is_the_nearest_outline_point():
     assert np.all(outline_distance(target, st.points[:, :2]) < 1e-4)
     reach = np.linalg.norm(pts[:, :2] - st.points[:, :2], axis=1)
     assert np.all(reach <= outline_distance(target, pts[:, :2]) + 1e-4)
-    z = np.clip(pts[:, 2], world.scene.table.height + 0.02, target.top_z - 0.03)
+    z = np.clip(pts[:, 2], world.scene.table.height + 0.02, target.top_z - GRASP_DEPTH)
     np.testing.assert_allclose(st.points[:, 2], z)
     ct = contact_targets(target, st.theta)  # theta round-trips to the same surface points
     np.testing.assert_allclose(ct.points[:, :2], st.points[:, :2], atol=1e-9)
@@ -79,7 +81,10 @@ def test_fine_reach_ends_with_every_fingertip_within_5mm(hovering):
     assert result.tip_error.max() < 0.005
     tips = world.fingertip_positions()
     np.testing.assert_allclose(
-        np.linalg.norm(tips - result.targets.points, axis=1), result.tip_error
+        np.linalg.norm(
+            tips - (result.targets.points + TOUCH_STANDOFF * result.targets.normals), axis=1
+        ),
+        result.tip_error,
     )
     assert result.max_penetration < 0.002
     assert result.other_contacts == ()
