@@ -59,6 +59,7 @@ class CycleRecord:
     synthesis_steps: int = 0
     converged: bool = False
     posture_retries: int = 0
+    regrasps: int = 0  #: restarts from Fine Reach with the hand turned or moved
     fine_reach_loops: int = 0
     reach_reasons: list[str] = field(default_factory=list)
     grip_forces: list[float] | None = None  #: N per finger after the squeeze

@@ -357,8 +357,8 @@ def _move_arm_and_hand(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> No
 
 def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
     """Take the arm and hand to a new posture near the block without sweeping a finger through
-    it: retract the fingers, back the palm out along its approach axis by BACKOFF, move to the
-    new posture backed out likewise, and approach it again in a straight line."""
+    it: retract the fingers, back the palm out along its approach axis by BACKOFF, move the arm to
+    the new posture backed out likewise, shape the hand there, and approach in a straight line."""
     world = ep.world
     checker = CollisionChecker(world, model=ep.planning)
     _retract(ep)
@@ -368,7 +368,8 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
     raised = checker.solve_ik(p_new - BACKOFF * R_new[:, 2], R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
-    _move_arm_and_hand(ep, raised.q, hand_q)
+    _move_arm_and_hand(ep, raised.q, world.hand_targets())  # the hand keeps its retracted shape
+    move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
     move_palm(world, checker, BACKOFF * R_new[:, 2], BACKOFF_TIME)
 
 
@@ -398,14 +399,12 @@ def posture_control(ep: Episode) -> Step:
             f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm",
         )
     # contacts mode: make the virtual contacts reachable, trying the wrist roll in steps
+    if ep.record.posture_retries > MAX_POSTURE_RETRIES:
+        return _regrasp_or_fail(ep)
     found = _reachable_posture(ep)
     if found is None:
         if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
-            raise TaskFailedError(
-                Failure.CONTACT_UNREACHABLE,
-                f"after {ep.record.posture_retries} posture retries no arm posture reaches the "
-                f"contacts ({ep.reach.reason if ep.reach is not None else 'unreachable'})",
-            )
+            return _regrasp_or_fail(ep)
         return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
     qpos, contacts, label = found
     ep.contacts = contacts
@@ -434,6 +433,52 @@ ROLL_SEEDS = tuple(np.deg2rad([0, 30, -30, 60, -60, 90, -90, 120, -120, 180]))
 #: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's, per
 #: approach: a hand tilted further grips a block standing on the table at an angle.
 MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
+
+
+def _regrasp_or_fail(ep: Episode) -> Step:
+    """After MAX_POSTURE_RETRIES the contacts stay out of reach: start again from Fine Reach with
+    the hand turned (top grasp: the wrist rolled by the next of REGRASP_ROLLS) or moved (lateral:
+    the palm raised or lowered by REGRASP_HEIGHTS), so the grasp controller starts from other
+    contacts; after MAX_REGRASPS, fail with the reason."""
+    record = ep.record
+    reason = ep.reach.reason if ep.reach is not None else "unreachable"
+    if record.regrasps >= MAX_REGRASPS:
+        raise TaskFailedError(
+            Failure.CONTACT_UNREACHABLE,
+            f"after {MAX_REGRASPS} regrasps and {record.posture_retries} posture retries: {reason}",
+        )
+    world = ep.world
+    checker = CollisionChecker(world, model=ep.planning)
+    arm_now = world.arm_targets()
+    # back to the coarse reach's goal (the hand hovering in its pre-shape), turned or moved
+    p, R = ep.coarse.goal.palm_position, ep.coarse.goal.palm_rotation
+    seed = arm_now.copy()
+    if ep.coarse.approach == "top":
+        roll = REGRASP_ROLLS[record.regrasps]
+        c, s = np.cos(roll), np.sin(roll)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        goal_p, goal_R = p, turn @ R
+        seed[-1] += roll
+        how = f"wrist turned {np.degrees(roll):+.0f} deg"
+    else:
+        dz = REGRASP_HEIGHTS[record.regrasps]
+        goal_p, goal_R = p + np.array([0.0, 0.0, dz]), R
+        how = f"palm moved {dz * 100:+.0f} cm"
+    ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
+    record.regrasps += 1
+    if not ik.found:
+        raise TaskFailedError(Failure.CONTACT_UNREACHABLE, f"{reason}; cannot regrasp ({how})")
+    back = checker.solve_ik(goal_p, goal_R, ik.q)
+    _reposition(ep, back.q if back.found else ik.q, np.asarray(ep.coarse.hand_q))
+    record.posture_retries = 0
+    ep.synthesis = ep.contacts = ep.reach = None
+    return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp with the {how}")
+
+
+#: Regrasps after the contacts stay out of reach, and how the hand is turned or moved for each.
+MAX_REGRASPS = 2
+REGRASP_ROLLS = (np.pi / 4, -np.pi / 4)
+REGRASP_HEIGHTS = (0.03, -0.03)
 
 
 def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
@@ -577,11 +622,6 @@ def wrench_closure(ep: Episode) -> Step:
             ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
         if not reach.reachable:
             record.reach_reasons.append(reach.reason)
-            if record.posture_retries >= MAX_POSTURE_RETRIES:
-                raise TaskFailedError(
-                    Failure.CONTACT_UNREACHABLE,
-                    f"after {record.posture_retries} posture retries: {reach.reason}",
-                )
             record.posture_retries += 1
             ep.posture_mode = "contacts"
             return Step(State.POSTURE_CONTROL, f"step {syn.steps}: {reach.reason}")
