@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
+from controllers.fine_reach import GRASP_DEPTH
 from controllers.posture import HandIndices, solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -279,8 +280,10 @@ def check_reach(
     )
 
 
-#: Contacts stay this far (m) below the block's top and above the table.
-TOP_MARGIN = 0.012
+#: Contacts stay at least GRASP_DEPTH (m) below the block's top (where Fine Reach takes the
+#: fingertips; a contact nearer the top edge is pressed by the side of the fingertip) and
+#: BOTTOM_MARGIN (m) above the table.
+TOP_MARGIN = GRASP_DEPTH
 BOTTOM_MARGIN = 0.02
 
 

@@ -429,7 +429,7 @@ def posture_control(ep: Episode) -> Step:
 
 #: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
 #: differential IK finds the nearest posture, which may keep a finger on the wrong side.
-ROLL_SEEDS = tuple(np.deg2rad([0, 30, -30, 60, -60, 90, -90, 120, -120, 180]))
+ROLL_SEEDS = tuple(np.deg2rad([0, 45, -45, 90, -90, 180]))
 #: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's, per
 #: approach: a hand tilted further grips a block standing on the table at an angle.
 MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
@@ -466,6 +466,10 @@ def _regrasp_or_fail(ep: Episode) -> Step:
         how = f"palm moved {dz * 100:+.0f} cm"
     ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
     record.regrasps += 1
+    if not ik.found and ep.coarse.approach == "top":  # the other way round
+        goal_R = goal_R @ np.diag([-1.0, -1.0, 1.0])
+        seed[-1] += np.pi if seed[-1] < 0 else -np.pi
+        ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
     if not ik.found:
         raise TaskFailedError(Failure.CONTACT_UNREACHABLE, f"{reason}; cannot regrasp ({how})")
     back = checker.solve_ik(goal_p, goal_R, ik.q)
