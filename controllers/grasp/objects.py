@@ -10,7 +10,11 @@ never overlap. Sizes are metres (blocks about 5 cm across, section 5.1); the con
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
 import numpy as np
+from numpy.typing import NDArray
 
 from controllers.grasp.errors import UnknownNameError
 from controllers.grasp.polygon import Polygon
@@ -182,9 +186,14 @@ def family(name: str, size: int = FAMILY_SIZE) -> list[Polygon]:
 
 #: Seeded sets of random convex polygons (:func:`random_convex_polygon`, 3-8 sides, diameter 5 cm):
 #: polygon i of set s is drawn by ``default_rng(POLYGON_SET_SEEDS[s] + i)``. "train" teaches the
-#: general F/S predictor; "heldout" is never used in training. The ranges are 1,000,000 apart, so
-#: they never overlap with each other or with the family seeds for sets under a million polygons.
-POLYGON_SET_SEEDS: dict[str, int] = {"train": 1_000_000, "heldout": 2_000_000}
+#: general F/S predictor, "validation" picks its settings, "heldout" is never used for either.
+#: Each set owns a range of MAX_SET_SIZE seeds; the ranges never overlap with each other or with
+#: the family seeds (FAMILY_SEED ...).
+POLYGON_SET_SEEDS: dict[str, int] = {
+    "train": 1_000_000,
+    "heldout": 2_000_000,
+    "validation": 4_000_000,
+}
 MAX_SET_SIZE = 1_000_000
 
 
@@ -199,5 +208,63 @@ def polygon_set_seeds(kind: str, count: int) -> range:
 
 
 def polygon_set(kind: str, count: int) -> list[Polygon]:
-    """The first ``count`` polygons of the seeded set ``kind`` ("train" or "heldout")."""
+    """The first ``count`` polygons of the seeded set ``kind`` (a key of POLYGON_SET_SEEDS)."""
     return [random_convex_polygon(np.random.default_rng(s)) for s in polygon_set_seeds(kind, count)]
+
+
+@dataclass(frozen=True)
+class ObjectSet:
+    """The objects of an experiment, each a family of one or more shapes (a regular paper object
+    is a family of one). Trial k of an object uses member ``k mod size``, so an object's trials
+    cycle through its family. ``polygons`` is the flat list (object 0's members first)."""
+
+    names: tuple[str, ...]
+    members: tuple[tuple[Polygon, ...], ...]
+    first: NDArray[np.int64] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if len(self.names) != len(self.members) or not self.members:
+            raise ValueError("an object set needs one name per object and at least one object")
+        if any(len(m) == 0 for m in self.members):
+            raise ValueError("every object needs at least one shape")
+        first = np.concatenate([[0], np.cumsum([len(m) for m in self.members])[:-1]])
+        object.__setattr__(self, "first", first.astype(np.int64))
+
+    @classmethod
+    def of(cls, objects: Sequence[Polygon | Sequence[Polygon]]) -> ObjectSet:
+        """From polygons (families of one) or sequences of polygons (families)."""
+        members = tuple((o,) if isinstance(o, Polygon) else tuple(o) for o in objects)
+        return cls(tuple(m[0].name for m in members), members)
+
+    @classmethod
+    def paper(
+        cls, names: Sequence[str] = PAPER_OBJECTS, family_size: int = FAMILY_SIZE
+    ) -> ObjectSet:
+        """The paper objects ``names`` with their shape families of ``family_size`` members."""
+        return cls(tuple(names), tuple(tuple(family(n, family_size)) for n in names))
+
+    @property
+    def polygons(self) -> tuple[Polygon, ...]:
+        return tuple(p for m in self.members for p in m)
+
+    @property
+    def sizes(self) -> NDArray[np.int64]:
+        return np.array([len(m) for m in self.members], dtype=np.int64)
+
+    def polygon_index(self, obj: NDArray[np.int64], k: NDArray[np.int64]) -> NDArray[np.int64]:
+        """Flat index of member ``k mod size`` of each object ``obj``."""
+        obj = np.asarray(obj, dtype=np.int64)
+        return self.first[obj] + np.asarray(k, dtype=np.int64) % self.sizes[obj]
+
+    def object_of(self, polygon_index: NDArray[np.int64]) -> NDArray[np.int64]:
+        """Object of each flat polygon index."""
+        return np.searchsorted(self.first, np.asarray(polygon_index), side="right") - 1
+
+    def test_index(self, trials: int, trials_per_member: int) -> NDArray[np.int64]:
+        """Flat polygon index of each test trial: ``trials`` on a family of one, and
+        ``trials_per_member`` on each member of a larger family, object by object."""
+        out = []
+        for o, m in enumerate(self.members):
+            reps = trials if len(m) == 1 else trials_per_member
+            out.append(np.repeat(self.first[o] + np.arange(len(m)), reps))
+        return np.concatenate(out)
