@@ -35,6 +35,7 @@ def test_provenance_names_command_seed_commit_date_and_figures():
     assert prov["quick"] is False and prov["seed"] == prov["run_seeds"][0]
     assert re.fullmatch(r"[0-9a-f]{40}(-dirty)?", prov["git_commit"])
     assert re.fullmatch(r"20\d\d-\d\d-\d\dT.*", prov["date"])
+    assert re.fullmatch(r"[0-9a-f]{64}", prov["source_sha256"])
     assert set(prov["models"]) == set(MODEL_FILES)
     general = prov["models"]["pi_predictor_general.json"]
     assert general["settings"] == GENERAL_SETTINGS and general["heldout_failure_run_mean"] < 1.0

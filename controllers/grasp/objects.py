@@ -44,9 +44,12 @@ FAMILY_OBJECTS: tuple[str, ...] = (
 )
 #: Members per family reported in Tables 1 and 2.
 FAMILY_SIZE = 20
-#: Diameter of every family member (section 5.1: blocks with "maximum distance between edges of
-#: 5 cm").
-FAMILY_DIAMETER = 5.0 * CM
+#: Size of every family member (section 5.1: blocks with "maximum distance between edges of 5 cm
+#: (for the rectangle)"): the long side of a rectangle or trapezoid, the diameter of an irregular
+#: k-gon. Size changes no grasp result (the controllers use unit-moment copies, section 3.4), only
+#: the physical blocks; it was changed from "diameter 5 cm for all" after the first results, to keep
+#: the rectangle and trapezoid 5 cm long as the section says (and as the hand was built for).
+FAMILY_LENGTH = 5.0 * CM
 #: Rectangle: aspect ratio (long / short side) uniform in this range (a block that is clearly not
 #: a square, and not a plank).
 RECTANGLE_ASPECT = (1.5, 2.5)
@@ -154,8 +157,9 @@ def family_seed(name: str, member: int) -> int:
 
 
 def family_member(name: str, member: int) -> Polygon:
-    """Member ``member`` of the pre-registered family ``name`` (metres, diameter 5 cm, longest edge
-    at the bottom). The rules, fixed before any controller was run on them:
+    """Member ``member`` of the pre-registered family ``name`` (metres, longest edge at the
+    bottom; a 5 cm long side for a rectangle or trapezoid, a 5 cm diameter otherwise). The rules
+    of the shapes, fixed before any controller was run on them:
 
     - rectangle: sides 1 and 1/r, r uniform in :data:`RECTANGLE_ASPECT`;
     - trapezoid: isosceles, bottom 1, top uniform in :data:`TRAPEZOID_TOP`, height uniform in
@@ -174,7 +178,9 @@ def family_member(name: str, member: int) -> Polygon:
     else:
         poly = random_convex_polygon(rng, sides=IRREGULAR_SIDES[name])
     poly = Polygon(vertices=poly.vertices, name=name)
-    return canonical(poly.scaled(FAMILY_DIAMETER / poly.diameter))
+    if name in ("rectangle", "trapezoid"):  # the bottom side is 1
+        return canonical(poly.scaled(FAMILY_LENGTH))
+    return canonical(poly.scaled(FAMILY_LENGTH / poly.diameter))
 
 
 def family(name: str, size: int = FAMILY_SIZE) -> list[Polygon]:

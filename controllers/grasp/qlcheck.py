@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp.experiments import average_failure, object_rows, trial_set
+from controllers.grasp.files import write_text
 from controllers.grasp.objects import ObjectSet
 from controllers.grasp.qlearning import (
     ACTIONS,
@@ -159,9 +160,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "curves": curves.T.tolist(),
         "seconds": round(time.perf_counter() - t0, 1),
     }
-    tmp = out / "qlcheck.json.tmp"
-    tmp.write_text(json.dumps(res, indent=1, sort_keys=True) + "\n")
-    tmp.replace(out / "qlcheck.json")
+    write_text(out / "qlcheck.json", json.dumps(res, indent=1, sort_keys=True) + "\n")
     avg = [f"{t['average_failure']:.2f}" for t in tables]
     print(f"sequential Q-learning, average failure per learner (%): {', '.join(avg)}")
     return 0

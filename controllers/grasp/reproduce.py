@@ -18,6 +18,7 @@ Every file is written atomically; ``results.json`` is written last and marks the
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
 import multiprocessing
 import signal
@@ -161,6 +162,7 @@ class ReproduceConfig:
     heldout_polygons: int = 200
     heldout_trials: int = 10
     noise_sweep: bool = True
+    validation_sweep: bool = True
     quick: bool = False
     command: str = field(default="", compare=False)
 
@@ -186,6 +188,7 @@ class ReproduceConfig:
             heldout_polygons=30,
             heldout_trials=4,
             noise_sweep=False,
+            validation_sweep=False,
             quick=True,
         )
         return cls(**{**small, **kwargs})
@@ -306,8 +309,9 @@ def task_general(cfg: ReproduceConfig, seed: int) -> dict:
             comps["nine_turn"] = PreImaging(nine, reading="turn")
             comps["general_literal"] = PreImaging(gen)
             comps["general_predictor_action"] = PreImaging(gen, action="predictor")
-        for reading in ("literal", "turn", "perimeter") if kind == "validation" else ("turn",):
-            for th in (0.0, -0.25, -0.5, -0.75) if kind == "validation" else (0.0,):
+        sweep = kind == "validation" and cfg.validation_sweep
+        for reading in ("literal", "turn", "perimeter") if sweep else ("turn",):
+            for th in (0.0, -0.25, -0.5, -0.75) if sweep else (0.0,):
                 comps[f"general_{reading}_{th:g}"] = PreImaging(gen, reading=reading, threshold=th)
         comps["general"] = PreImaging(gen, **GENERAL_SETTINGS)
         for key, comp in comps.items():
@@ -485,6 +489,15 @@ def git_commit() -> str:
     return head + ("-dirty" if dirty else "")
 
 
+def source_hash() -> str:
+    """SHA-256 of the grasp core's Python sources (file names and bytes, sorted): identifies the
+    code that made the models even where a commit was later rewritten."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
 def reproduce(
     out: Path, config: ReproduceConfig | None = None, progress: Progress = _stderr
 ) -> dict:
@@ -645,6 +658,7 @@ def provenance(res: dict, cfg: ReproduceConfig, checks: dict) -> dict:
         "seed": seed,
         "run_seeds": res["seeds"],
         "git_commit": git_commit(),
+        "source_sha256": source_hash(),
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "quick": cfg.quick,
         "models": {
