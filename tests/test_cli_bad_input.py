@@ -98,7 +98,10 @@ GRASP_CASES = [
     (["trials", "--max-steps", "0"], "argument --max-steps"),
     # names and models
     (["trials", "--object", "circle"], "unknown object 'circle'; valid:"),
-    (["trials", "--controller", "magic"], "unknown controller 'magic'; valid: kb, pi, ql"),
+    (
+        ["trials", "--controller", "magic"],
+        "unknown controller 'magic'; valid: kb, pi, pi5, pi9, ql",
+    ),
     (["trials", "--controller", "ql", "--models", "{adir}"], "--models: {adir} holds no reproduce"),
     (["trials", "--controller", "pi", "--models", "{tmp}/none"], "there is no folder"),
     (["trials", "--controller", "pi", "--models", "{afile}"], "is not a folder"),
@@ -123,7 +126,10 @@ GRASP_CASES = [
     (["reproduce", "--out", "/"], "argument --out: will not write into the root folder"),
     (["reproduce", "--out", "{afile}"], "argument --out: '{afile}' is a file, not a folder"),
     (["reproduce", "--out", "/proc/x"], "--out: cannot write into '/proc/x'"),
-    (["reproduce", "--out", "{tmp}/r", "--seed", "-1"], "argument --seed"),
+    (["reproduce", "--out", "{tmp}/r", "--seeds", "-1"], "argument --seeds"),
+    (["reproduce", "--out", "{tmp}/r", "--seeds", "0,x"], "argument --seeds"),
+    (["reproduce", "--out", "{tmp}/r", "--seeds", "1,1"], "distinct seeds"),
+    (["reproduce", "--out", "{tmp}/r", "--workers", "0"], "argument --workers"),
     (["reproduce"], "the following arguments are required: --out"),
     ([], "the following arguments are required: COMMAND"),
 ]

@@ -22,15 +22,21 @@ from hand_sim.recorder import read_recording
 GRASP = [sys.executable, "-m", "controllers.grasp"]
 TINY = replace(
     ReproduceConfig.quick_run(),
+    seeds=(1,),
+    workers=1,
     ql_epochs=4,
     predictor_epochs=2,
     test_trials=8,
+    family_size=2,
+    family_trials=4,
     curve_epochs=4,
     atomic_epochs=4,
     atomic_trials=20,
     atomic_test_trials=20,
-    random_polygons=4,
-    random_trials=2,
+    general_trials=10,
+    validation_polygons=4,
+    heldout_polygons=4,
+    heldout_trials=2,
 )
 
 
@@ -44,10 +50,10 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "run"
-    reproduce(out, seed=1, config=TINY, progress=lambda _: None)  # an earlier, finished run
+    reproduce(out, TINY, progress=lambda _: None)  # an earlier, finished run
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     p = subprocess.Popen(
-        [*GRASP, "reproduce", "--quick", "--seed", "2", "--out", str(out)],
+        [*GRASP, "reproduce", "--quick", "--seeds", "2", "--out", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -56,9 +62,9 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
     )
     lines = []
     assert p.stderr is not None
-    for line in p.stderr:  # the Q-learning model of seed 2 is written, the others are not yet
+    for line in p.stderr:  # the first task of the pool is done, the others are not
         lines.append(line)
-        if "qlearning done" in line:
+        if " done in " in line:
             p.send_signal(signal.SIGINT)
             break
     rest, _ = p.stderr.read(), p.wait(timeout=120)
@@ -69,11 +75,10 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
         lines[-1].strip() == f"python -m controllers.grasp: interrupted; partial results in {out}"
     )
     assert p.stdout is not None and p.stdout.read() == ""
-    # no temporary file is left; the seed-1 models beside the new Q-table are refused as a run
+    # no temporary file is left; the seed-1 models left in the folder are refused as a run
     assert not [q.name for q in out.iterdir() if q.name.startswith(".")]
     assert json.loads((out / "results.json").read_text()) == {"run": {"seed": 2, "finished": False}}
-    assert (out / "ql_q.npy").read_bytes() != before["ql_q.npy"]
-    assert (out / "pi_predictor.json").read_bytes() == before["pi_predictor.json"]
+    assert (out / "ql_q.npy").read_bytes() == before["ql_q.npy"]  # models come last
     for ctrl in ("ql", "pi"):  # in-process: the same command as a later shell call
         argv = ["trials", "--controller", ctrl, "--models", str(out), "--trials", "5"]
         assert grasp_cli.main(argv) == 2

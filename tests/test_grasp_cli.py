@@ -80,3 +80,43 @@ def test_bad_input_is_one_line_and_exit_2(args, message):
     assert p.returncode == 2
     assert message in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+def _score_json(tmp_path, vertices, points):
+    out = tmp_path / "s.json"
+    fmt = ";".join  # repr keeps every bit of a float
+    p = run(
+        "score",
+        "--polygon=" + fmt(f"{float(x)!r},{float(y)!r}" for x, y in vertices),
+        "--points=" + fmt(f"{float(x)!r},{float(y)!r}" for x, y in points),
+        "--json",
+        str(out),
+    )
+    assert p.returncode == 0, p.stderr
+    return json.loads(out.read_text())["s_g"]
+
+
+def test_score_cli_agrees_with_the_library_on_and_near_the_outline(tmp_path):
+    """Points on the outline give the library's S_G; a point slightly off it (within the
+    tolerance) is moved to the nearest outline point, not along the polar ray."""
+    from controllers.grasp.objects import polygon_set
+
+    rng = np.random.default_rng(8)
+    offset = np.array([0.31, -0.17])  # the CLI takes any frame and any vertex order
+    checked = 0
+    for poly in polygon_set("heldout", 6):
+        unit = poly.unit_moment()
+        for _ in range(20):
+            theta = rng.uniform(-np.pi, np.pi, 4)
+            lib = grasp_score(*unit.locate(theta)[1:3])
+            if not lib.feasible or not 0.3 < lib.s_g < 3.0:  # weak grasps
+                continue
+            frames = poly.locate(theta)
+            # push contact 0 off its edge, outward, by 0.2 % of the diameter
+            pts = frames.point.copy()
+            pts[0] += 0.002 * poly.diameter * frames.normal[0]
+            cli = _score_json(tmp_path, poly.vertices[::-1] + offset, pts + offset)
+            assert cli == pytest.approx(lib.s_g, abs=1e-6)
+            checked += 1
+            break
+    assert checked >= 4

@@ -1,5 +1,5 @@
-"""``reproduce``: a tiny seeded run writes the report, figures and models, bit-identically, and the
-trained models serve ``trials --controller ql|pi``."""
+"""``reproduce``: a tiny seeded run writes the report, figures and models, bit-identically whether
+its tasks run in this process or in a pool of two, and the trained models serve ``trials``."""
 
 import json
 import shutil
@@ -10,61 +10,90 @@ import pytest
 
 from controllers.grasp.cli import main
 from controllers.grasp.qlearning import ACTIONS, N_BINS, save_q_table
-from controllers.grasp.reproduce import ReproduceConfig, reproduce
+from controllers.grasp.reproduce import MODEL_FILES, ReproduceConfig, reproduce
 from controllers.grasp.run_folder import check_finished_run, mark_started
+from controllers.grasp.shipped import check_figures
 
 TINY = replace(
     ReproduceConfig.quick_run(),
+    seeds=(1, 2),
+    workers=1,
     ql_epochs=4,
     predictor_epochs=2,
     test_trials=8,
+    family_size=2,
+    family_trials=4,
     curve_epochs=4,
     atomic_epochs=4,
     atomic_trials=20,
     atomic_test_trials=20,
-    random_polygons=4,
-    random_trials=2,
+    general_trials=10,
+    validation_polygons=4,
+    heldout_polygons=4,
+    heldout_trials=2,
 )
 
 COMPARED = (
     "report.md",
     "results.json",
     "ql_q.npy",
-    "pi_predictor.json",
+    "pi_predictor_nine.json",
     "pi_predictor_five.json",
+    "pi_predictor_general.json",
     "atomic_q.npy.gz",
     "fig09_failure_curves.png",
     "fig11_fs_map_visits.png",
+    "fig12_configurations.png",
 )
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     a, b = tmp_path_factory.mktemp("a"), tmp_path_factory.mktemp("b")
-    res = reproduce(a, seed=1, config=TINY, progress=lambda _: None)
-    reproduce(b, seed=1, config=TINY, progress=lambda _: None)
+    res = reproduce(a, TINY, progress=lambda _: None)
+    reproduce(b, replace(TINY, workers=2), progress=lambda _: None)
     return a, b, res
 
 
-def test_same_seed_same_artefacts(runs):
+def test_same_seeds_same_artefacts_in_process_or_in_a_pool(runs):
     a, b, _ = runs
     for name in COMPARED:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     assert len(list(a.glob("fig*.png"))) == 9
 
 
-def test_report_sets_our_numbers_beside_the_papers(runs):
+def test_report_sets_our_numbers_beside_the_papers_with_seed_spread(runs):
     a, _, res = runs
     text = (a / "report.md").read_text()
-    assert "10.06" in text and "3.6052" in text and "0.138" in text
+    assert "10.06" in text and "3.6052" in text and "Seeds 1, 2" in text
+    assert "±" in text and "5-95 %" in text
+    for reading in ("literal", "gradient", "turn", "perimeter"):
+        assert f"| {reading}:" in text or f"{reading}: " in text
     assert abs(res["appendix_a"]["theta_T"] - 3.6052) < 1e-3
-    assert set(res["table2"]) == {"kb", "ql", "pi", "pi5"}
-    assert json.loads((a / "results.json").read_text())["seed"] == 1
+    tables = res["tables"]
+    assert {"kb", "ql", "pi", "pi5", "pi_gradient", "pi_turn", "pi_perimeter"} <= set(tables)
+    kb = tables["kb"]["rows"]["square"]["failure"]
+    per_seed = [res["per_seed"]["kb"][s]["square"]["failure"] for s in ("1", "2")]
+    assert kb["mean"] == pytest.approx(sum(per_seed) / 2)
+    assert "spread" in tables["kb"]["rows"]["irregular_triangle"]
+    assert "spread" not in tables["kb"]["rows"]["square"]
+    saved = json.loads((a / "results.json").read_text())
+    assert saved["seeds"] == [1, 2]
+    assert set(saved["general"]["heldout"]) >= {"kb", "nine_literal", "general"}
+
+
+def test_provenance_records_the_run_and_its_checks(runs):
+    a, _, _ = runs
+    prov = json.loads((a / "provenance.json").read_text())
+    assert prov["seed"] == 1 and prov["command"].startswith("python -m controllers.grasp")
+    assert len(prov["git_commit"]) >= 7 and prov["date"][:2] == "20"
+    assert set(prov["models"]) >= {"ql_q.npy", "pi_predictor_general.json"}
+    assert prov["checks"] == check_figures(a)
 
 
 def test_trials_cli_uses_saved_models(runs, capsys):
     a, _, _ = runs
-    for ctrl in ("ql", "pi"):
+    for ctrl in ("ql", "pi", "pi9", "pi5"):
         assert main(["trials", "--controller", ctrl, "--models", str(a), "--trials", "5"]) == 0
         assert f"{ctrl}: failure" in capsys.readouterr().out
 
@@ -74,12 +103,11 @@ def test_trials_cli_without_models_says_how_to_train(tmp_path, capsys):
     assert "reproduce --out" in capsys.readouterr().err
 
 
-def test_a_finished_run_is_marked_with_its_seed_and_model_hashes(runs):
+def test_a_finished_run_is_marked_with_its_first_seed_and_model_hashes(runs):
     a, _, _ = runs
     run = json.loads((a / "results.json").read_text())["run"]
     assert run["finished"] is True and run["seed"] == 1
-    assert set(run["models"]) == {"ql_q.npy", "pi_predictor.json", "pi_predictor_five.json",
-                                  "atomic_q.npy.gz"}  # fmt: skip
+    assert set(run["models"]) == set(MODEL_FILES)
     assert check_finished_run(a) == 1
     assert not list(a.glob(".*"))  # no temporary file left behind
 
@@ -116,7 +144,7 @@ def test_trials_refuses_models_of_an_unfinished_or_mixed_run(
     elif spoil == "no_results":
         results.unlink()
     else:
-        (d / "pi_predictor.json").unlink()
+        (d / "pi_predictor_general.json").unlink()
     for ctrl in ("ql", "pi"):
         assert main(["trials", "--controller", ctrl, "--models", str(d), "--trials", "5"]) == 2
         err = capsys.readouterr().err.strip().splitlines()

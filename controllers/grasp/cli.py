@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,13 +18,21 @@ import numpy as np
 from controllers.grasp import clitools as cli
 from controllers.grasp.errors import PolygonError
 from controllers.grasp.experiments import (
+    FAMILY_TRIALS,
     PAPER_TABLE1_AVERAGE,
     PAPER_TABLE1_KB,
+    average_failure,
     table1_rows,
     trial_summary,
 )
 from controllers.grasp.files import write_text
-from controllers.grasp.objects import PAPER_LABELS, PAPER_OBJECTS, paper_object
+from controllers.grasp.objects import (
+    FAMILY_OBJECTS,
+    FAMILY_SIZE,
+    PAPER_LABELS,
+    PAPER_OBJECTS,
+    paper_object,
+)
 from controllers.grasp.polygon import Polygon, centroid_of, parse_points
 from controllers.grasp.registry import COMPOSERS, make_composer
 from controllers.grasp.run_folder import check_finished_run
@@ -43,7 +52,11 @@ MAX_GAIN = 10.0
 #: Task wrench components (unit-moment frame, in units of the unit contact force).
 MAX_TASK = 1e6
 #: Controllers that read trained models from ``--models``.
-LEARNED = ("ql", "pi")
+LEARNED = ("ql", "pi", "pi9", "pi5")
+#: Seeds a reproduce run may average over.
+MAX_SEEDS = 16
+#: Worker processes of reproduce (more than the machine's cores only adds switching).
+MAX_WORKERS = 64
 
 
 def _user_polygon(text: str, flag: str) -> tuple[np.ndarray, Polygon]:
@@ -136,9 +149,7 @@ def cmd_score(args: argparse.Namespace) -> int:
     raw, poly = _user_polygon(args.polygon, "--polygon")
     centroid = centroid_of(raw)
     points = parse_points(args.points, what="--points") - centroid
-    theta = poly.theta_of(points)
-    frames = poly.locate(theta)
-    off = np.linalg.norm(frames.point - points, axis=1)
+    on, edge, off = poly.nearest_on_outline(points)
     bad = np.flatnonzero(off > ON_BOUNDARY_TOLERANCE * poly.diameter)
     if bad.size:
         i = int(bad[0])
@@ -149,7 +160,8 @@ def cmd_score(args: argparse.Namespace) -> int:
     _prepare_json(args)
     scale = 1.0 / poly.max_moment
     task = None if args.task is None else list(args.task)
-    score = grasp_score(frames.point * scale, frames.normal, task)
+    normals = np.stack([np.cos(poly.normal_angle[edge]), np.sin(poly.normal_angle[edge])], axis=1)
+    score = grasp_score(on * scale, normals, task)
     if score.feasible:
         shown = round(score.s_g, 4) + 0.0  # + 0.0: the LP's -1e-12 prints as 0.0000, not -0.0000
         print(f"S_G = {shown:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
@@ -174,19 +186,22 @@ def cmd_table1(args: argparse.Namespace) -> int:
     rows = table1_rows(args.trials, args.seed, gain=args.gain)
     elapsed = time.perf_counter() - start
     print(
-        f"Table 1, knowledge-based composition: {args.trials} trials per object, seed {args.seed}"
+        f"Table 1, knowledge-based composition: {args.trials} trials per regular object, "
+        f"{FAMILY_TRIALS} per shape of the * families ({FAMILY_SIZE} shapes, 5-95 % range), "
+        f"seed {args.seed}"
     )
-    print(f"{'Object':18s} {'ours (%)':>9s} {'paper (%)':>10s} {'mean S_G':>9s} {'steps':>6s}")
-    for r in rows:
+    print(f"{'Object':18s} {'ours (%)':>9s} {'range':>11s} {'paper (%)':>10s} {'mean S_G':>9s}")
+    for name, r in rows.items():
+        spread = "" if "spread" not in r else f"{r['spread'][0]:.1f}-{r['spread'][1]:.1f}"
+        label = PAPER_LABELS[name] + (" *" if name in FAMILY_OBJECTS else "")
         print(
-            f"{PAPER_LABELS[r['object']]:18s} {100 * r['failure_rate']:9.2f} "
-            f"{PAPER_TABLE1_KB[r['object']]:10.2f} {r['mean_s_g']:9.3f} {r['mean_steps']:6.1f}"
+            f"{label:18s} {r['failure']:9.2f} {spread:>11s} {PAPER_TABLE1_KB[name]:10.2f} "
+            f"{r['mean_s_g']:9.3f}"
         )
-    avg = float(np.mean([r["failure_rate"] for r in rows]))
-    paper_avg = PAPER_TABLE1_AVERAGE["kb"]
-    print(f"{'Average':18s} {100 * avg:9.2f} {paper_avg:10.2f}")
-    print(f"({len(rows) * args.trials} trials in {elapsed:.2f} s)")
-    _write_json(args.json, {"rows": rows, "average_failure_rate": avg, "seconds": elapsed})
+    avg = average_failure(rows)
+    print(f"{'Average':18s} {avg:9.2f} {'':>11s} {PAPER_TABLE1_AVERAGE['kb']:10.2f}")
+    print(f"({elapsed:.2f} s)")
+    _write_json(args.json, {"rows": rows, "average_failure": avg, "seconds": elapsed})
     return 0
 
 
@@ -194,15 +209,35 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     from controllers.grasp.reproduce import ReproduceConfig, reproduce
 
     cli.prepare_dir(args.out, "--out")
-    cfg = ReproduceConfig.quick_run() if args.quick else ReproduceConfig.paper()
+    extra = {"workers": args.workers, "command": f"{PROG} {args.argv}"}
+    if args.seeds is not None:
+        extra["seeds"] = args.seeds
+    cfg = ReproduceConfig.quick_run(**extra) if args.quick else ReproduceConfig.paper(**extra)
     with cli.partial_results_in(args.out):
-        res = reproduce(args.out, seed=args.seed, config=cfg)
-    avg = {k: f"{v['average_failure']:.2f}" for k, v in res["table2"].items()}
+        res = reproduce(args.out, config=cfg)
+    avg = {k: res["tables"][k]["average_failure"]["mean"] for k in ("kb", "ql", "pi", "pi5")}
+    held = res["general"]["heldout"]
     print(
-        f"average failure (%): kb {avg['kb']}, ql {avg['ql']}, pi {avg['pi']}, "
-        f"pi (5 objects) {avg['pi5']}; report: {args.out / 'report.md'}"
+        f"average failure (%) over seeds {','.join(map(str, cfg.seeds))}: kb {avg['kb']:.2f}, "
+        f"ql {avg['ql']:.2f}, pi {avg['pi']:.2f}, pi (5 objects) {avg['pi5']:.2f}; held-out "
+        f"polygons: kb {held['kb']['failure']['mean']:.2f}, general pi "
+        f"{held['general']['failure']['mean']:.2f}; report: {args.out / 'report.md'}"
     )
     return 0
+
+
+def seed_list(text: str) -> tuple[int, ...]:
+    """``--seeds``: distinct integers 0..SEED_MAX, comma-separated, at most MAX_SEEDS."""
+    parse = cli.seed
+    try:
+        seeds = tuple(parse(x) for x in text.split(","))
+    except argparse.ArgumentTypeError as e:
+        raise argparse.ArgumentTypeError(f"{e} (seeds are written like 0,1,2)") from None
+    if len(set(seeds)) != len(seeds) or len(seeds) > MAX_SEEDS:
+        raise argparse.ArgumentTypeError(
+            f"must be 1..{MAX_SEEDS} distinct seeds like 0,1,2, got {text!r}"
+        )
+    return seeds
 
 
 def build_parser() -> cli.ArgumentParser:
@@ -257,7 +292,8 @@ def build_parser() -> cli.ArgumentParser:
         "--models",
         type=Path,
         metavar="DIR",
-        help="folder of a finished `reproduce --out DIR` run whose models --controller ql|pi use",
+        help="folder of a finished `reproduce --out DIR` run whose models --controller "
+        "ql|pi|pi9|pi5 use (default: the models shipped in the package)",
     )
     t.add_argument(
         "--json",
@@ -313,9 +349,11 @@ def build_parser() -> cli.ArgumentParser:
     r = sub.add_parser(
         "reproduce",
         help="train and test every learned controller; write report, figures, models",
-        description="Every experiment of the paper (Tables 1-2, section 2, Appendix A, figures): "
-        "train and test every learned controller and write report.md, results.json, the figures "
-        "and the trained models into --out. About 4-9 minutes on 2 cores (--quick: under one).",
+        description="Every experiment of the paper (Tables 1-2, the noise readings, section 2, "
+        "Appendix A, figures) and PI on held-out polygons, over several seeds: train and test "
+        "every learned controller and write report.md, results.json, the figures and the "
+        "trained models into --out. About 13 CPU-minutes: 7 minutes on 2 idle cores "
+        "(--quick: under one).",
     )
     r.add_argument(
         "--out",
@@ -328,13 +366,26 @@ def build_parser() -> cli.ArgumentParser:
     r.add_argument(
         "--quick", action="store_true", help="reduced sizes for CI (well under a minute)"
     )
-    r.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    r.add_argument(
+        "--seeds",
+        type=seed_list,
+        metavar="S,S,...",
+        help=f"seeds, 0..{cli.SEED_MAX}; tables are mean +- sd over them "
+        "(default 0,1,2; with --quick 0)",
+    )
+    r.add_argument(
+        "--workers",
+        type=cli.integer(1, MAX_WORKERS),
+        default=2,
+        help=f"worker processes, 1..{MAX_WORKERS}",
+    )
     r.set_defaults(func=cmd_reproduce)
     return p
 
 
 def _run(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    args.argv = " ".join(sys.argv[1:] if argv is None else argv)
     return int(args.func(args))
 
 

@@ -313,6 +313,19 @@ class Polygon:
     def normal_at(self, theta: ArrayLike) -> NDArray[np.float64]:
         return self.locate(theta).normal
 
+    def nearest_on_outline(self, points: ArrayLike):
+        """For points (k, 2) in the object frame: the nearest point of the outline, the index of
+        the edge it lies on (the first one at a vertex), and the distance to it."""
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        a = self.vertices
+        d = np.roll(a, -1, axis=0) - a
+        t = np.einsum("kej,ej->ke", p[:, None, :] - a[None], d) / (d**2).sum(-1)[None]
+        q = a[None] + np.clip(t, 0.0, 1.0)[..., None] * d[None]
+        dist = np.linalg.norm(p[:, None, :] - q, axis=-1)
+        edge = np.argmin(dist, axis=1)
+        rows = np.arange(p.shape[0])
+        return q[rows, edge], edge, dist[rows, edge]
+
     def theta_of(self, point: ArrayLike) -> NDArray[np.float64]:
         """Contact coordinate (polar angle) of boundary points given in the object frame."""
         p = np.asarray(point, dtype=float)

@@ -21,9 +21,17 @@ from numpy.typing import ArrayLike, NDArray
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
 from controllers.grasp.files import write_text
-from controllers.grasp.objects import PAPER_OBJECTS, paper_object
+from controllers.grasp.objects import ObjectSet
 from controllers.grasp.polygon import Polygon
-from controllers.grasp.qlearning import EPS_FLOOR, LOG_SCALE, N_BINS, epoch_objects, scaled_error
+from controllers.grasp.qlearning import (
+    EPS_FLOOR,
+    LOG_SCALE,
+    N_BINS,
+    as_object_set,
+    epoch_objects,
+    epoch_trials,
+    scaled_error,
+)
 from controllers.grasp.trials import GAIN, PolygonBatch, run_trials
 
 #: Network shape of section 4.3: two state inputs, three hidden units, one output.
@@ -34,7 +42,8 @@ TRIALS_PER_OBJECT = 10
 #: Backpropagation settings (the paper gives none; our choice): plain SGD on the mean squared
 #: error, this learning rate and mini-batch, this many passes over the balanced set at the end
 #: of each epoch. The set is drawn from all states visited so far ("a fraction of all visited
-#: states", section 4.3), which places the F/S boundary more consistently than one epoch's states.
+#: states", section 4.3). That reading was chosen after seeing that one epoch's states place the
+#: F/S boundary less consistently; ``reproduce`` reports PI (c) with both (docs/learning.md).
 LEARNING_RATE = 0.5
 BATCH_SIZE = 16
 PASSES_PER_EPOCH = 3
@@ -142,6 +151,13 @@ class FSPredictor:
             )
         return cls(*arrays)
 
+    @staticmethod
+    def load_meta(path: Path) -> dict:
+        """The ``meta`` a file written by :meth:`save` carries (empty if none); call after
+        :meth:`load` has checked the file."""
+        meta = json.loads(Path(path).read_text()).get("meta", {})
+        return meta if isinstance(meta, dict) else {}
+
 
 def visited_states(states: NDArray[np.float64], success: NDArray[np.bool_]):
     """All (eps_FC, eps_MC) rows of recorded trials (T, steps, 2) and each row's trial outcome."""
@@ -201,34 +217,41 @@ def fit_epoch(
 
 def train_predictor(
     rng: np.random.Generator,
-    polygons: Sequence[Polygon] | None = None,
+    polygons: ObjectSet | Sequence[Polygon] | None = None,
     epochs: int = PREDICTOR_EPOCHS,
     trials_per_object: int = TRIALS_PER_OBJECT,
     gain: float = GAIN,
     torch_seed: int | None = None,
     progress: Callable[[int, float], None] | None = None,
+    cumulative: bool = True,
 ) -> PredictorTraining:
     """Train the F/S predictor on knowledge-based trials (section 4.3): after each epoch, a
-    class-balanced sample of all states visited so far is presented in random order.
+    class-balanced sample of all states visited so far (``cumulative``; else of that epoch's
+    states only) is presented in random order.
 
     ``rng`` draws the trials, the balancing and the presentation order; ``torch_seed`` (default:
     drawn from ``rng``) seeds the initial weights. Same inputs, same weights, bit for bit.
     """
-    polys = list(polygons) if polygons is not None else [paper_object(n) for n in PAPER_OBJECTS]
+    objects = as_object_set(polygons)
+    polys = objects.polygons
     batch = PolygonBatch.of(polys)
     seed = int(rng.integers(2**31)) if torch_seed is None else torch_seed
     net = FSNetwork(torch.Generator().manual_seed(seed))
     opt = torch.optim.SGD(net.parameters(), lr=LEARNING_RATE)
-    idx = epoch_objects(len(polys), trials_per_object, rng)
+    obj = epoch_objects(len(objects.names), trials_per_object, rng)
     failures, losses, counts = np.zeros(epochs), np.full(epochs, np.nan), np.zeros(epochs, np.int64)
     seen_rows: list[NDArray[np.float64]] = []
     seen_labels: list[NDArray[np.bool_]] = []
     for e in range(epochs):
+        idx = epoch_trials(objects, obj, e, trials_per_object)
         result = run_trials(
             polys, idx, KnowledgeBased(), rng, gain=gain, batch=batch, record_states=True
         )
         failures[e] = result.failure_rate
         rows, label = visited_states(result.states, result.success)
+        if not cumulative:
+            seen_rows.clear()
+            seen_labels.clear()
         seen_rows.append(rows)
         seen_labels.append(label)
         rows, label = balance_classes(np.concatenate(seen_rows), np.concatenate(seen_labels), rng)
@@ -239,6 +262,4 @@ def train_predictor(
             losses[e] = fit_epoch(net, opt, x, y, rng)
         if progress is not None:
             progress(e, failures[e])
-    return PredictorTraining(
-        FSPredictor.of(net), failures, losses, counts, tuple(p.name for p in polys)
-    )
+    return PredictorTraining(FSPredictor.of(net), failures, losses, counts, objects.names)

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
 from controllers.grasp.files import atomic_path
-from controllers.grasp.objects import PAPER_OBJECTS, paper_object
+from controllers.grasp.objects import ObjectSet
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.state import ControlState
@@ -192,9 +192,27 @@ def epoch_objects(
     return np.repeat(order, trials_per_object)
 
 
+def epoch_trials(
+    objects: ObjectSet, object_index: NDArray[np.int64], epoch: int, trials_per_object: int
+) -> NDArray[np.int64]:
+    """Flat polygon index of each trial of epoch ``epoch``: trial j of an object in that epoch is
+    its (epoch * trials_per_object + j)-th trial, on the family member of that number (modulo the
+    family size), so training cycles through every member of a family."""
+    j = np.tile(np.arange(trials_per_object), object_index.size // trials_per_object)
+    return objects.polygon_index(object_index, epoch * trials_per_object + j)
+
+
+def as_object_set(objects: ObjectSet | Sequence[Polygon] | None) -> ObjectSet:
+    """An :class:`ObjectSet`: the paper's nine objects with their families when None, a family of
+    one per polygon for a plain sequence of polygons."""
+    if objects is None:
+        return ObjectSet.paper()
+    return objects if isinstance(objects, ObjectSet) else ObjectSet.of(list(objects))
+
+
 def train_qlearning(
     rng: np.random.Generator,
-    polygons: Sequence[Polygon] | None = None,
+    polygons: ObjectSet | Sequence[Polygon] | None = None,
     epochs: int = EPOCHS,
     trials_per_object: int = TRIALS_PER_OBJECT,
     gain: float = GAIN,
@@ -202,22 +220,25 @@ def train_qlearning(
 ) -> QLearningResult:
     """Train the Q-learning composer (section 3.6.2); the trials of each epoch run as one batch.
 
-    ``progress(epoch, failure_rate)`` is called after every epoch. The same ``rng`` state gives a
-    bit-identical Q-table.
+    ``polygons``: the objects (default: the nine paper objects with their shape families; a family
+    is visited member by member, see :func:`epoch_trials`). ``progress(epoch, failure_rate)`` is
+    called after every epoch. The same ``rng`` state gives a bit-identical Q-table.
     """
-    polys = list(polygons) if polygons is not None else [paper_object(n) for n in PAPER_OBJECTS]
+    objects = as_object_set(polygons)
+    polys = objects.polygons
     batch = PolygonBatch.of(polys)
-    idx = epoch_objects(len(polys), trials_per_object, rng)
+    obj = epoch_objects(len(objects.names), trials_per_object, rng)
     temps = temperature_schedule(epochs)
     composer = QLearningComposer(learn=True)
     failures = np.zeros(epochs)
     for e in range(epochs):
         composer.temperature = float(temps[e])
+        idx = epoch_trials(objects, obj, e, trials_per_object)
         result = run_trials(polys, idx, composer, rng, gain=gain, batch=batch)
         failures[e] = result.failure_rate
         if progress is not None:
             progress(e, failures[e])
-    order = tuple(polys[i].name for i in idx[::trials_per_object])
+    order = tuple(objects.names[i] for i in obj[::trials_per_object])
     return QLearningResult(composer.q.copy(), failures, temps, order)
 
 

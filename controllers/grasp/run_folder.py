@@ -25,7 +25,7 @@ REPRODUCE = "python -m controllers.grasp reproduce --out"
 
 #: What to do when a learned controller finds no model (the README's main command).
 TRAIN_HINT = (
-    f"train the models with `{REPRODUCE} runs/paper` (4-9 minutes on 2 cores), "
+    f"train the models with `{REPRODUCE} runs/paper` (about 7 minutes on 2 idle cores), "
     "then pass `--models runs/paper`"
 )
 
@@ -61,7 +61,7 @@ def check_finished_run(folder: Path, flag: str = "models") -> int:
     if not folder.exists():
         raise RunFolderError(
             f"{flag}: there is no folder {str(folder)!r}; run `{REPRODUCE} {folder}` first "
-            "(4-9 minutes on 2 cores)"
+            "(about 7 minutes on 2 idle cores)"
         )
     if not folder.is_dir():
         raise RunFolderError(
@@ -72,7 +72,7 @@ def check_finished_run(folder: Path, flag: str = "models") -> int:
     if not results.is_file():
         raise RunFolderError(
             f"{flag}: {folder} holds no reproduce run (no {RESULTS_FILE}); "
-            f"run `{REPRODUCE} {folder}` first (4-9 minutes)"
+            f"run `{REPRODUCE} {folder}` first (about 7 minutes on 2 idle cores)"
         )
     try:
         run = json.loads(results.read_text(encoding="utf-8"))["run"]

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp.polygon import ContactFrames
+
+if TYPE_CHECKING:
+    from controllers.grasp.trials import PolygonBatch
 
 
 @dataclass(frozen=True)
@@ -27,3 +31,4 @@ class ControlState:
     grad_mc: NDArray[np.float64]  #: (T, n) Eq. 12
     active: NDArray[np.bool_]  #: (T,)
     object_index: NDArray[np.int64]  #: (T,) which polygon each trial grasps
+    batch: PolygonBatch | None = None  #: the polygons (unit-moment), for geometry-aware composers
