@@ -30,7 +30,7 @@ def read_recording(path: Path) -> dict[str, dict[str, int]]:
 
 
 #: The controller the episode tests run (the shipped default).
-CONTROLLER = "kb"
+CONTROLLER = "pi"
 
 
 # --- the table ----------------------------------------------------------------------------------
