@@ -35,6 +35,7 @@ from controllers.reach import (
     APPROACHES,
     ReachTarget,
     execute_path,
+    plan_arm_path,
     plan_coarse_reach,
     plan_delivery,
 )
@@ -78,6 +79,8 @@ RETRACT = 0.015
 #: each straight move out and in taking BACKOFF_TIME (s): the fingers stay clear of the block.
 BACKOFF = 0.08
 BACKOFF_TIME = 0.8
+#: Clearance (m) of the harmonic path between the backed-out postures.
+REPOSITION_CLEARANCE = 0.0
 #: Times (s) of the hand's moves.
 RETRACT_TIME = 0.4
 PRESHAPE_TIME = 0.6
@@ -337,7 +340,13 @@ def _retract(ep: Episode) -> None:
     tips = world.fingertip_positions()
     out = project_to_surface(ep.target, tips, table_z=world.scene.table.height)
     sol = solve_posture(
-        world, tips + RETRACT * out.normals, optimize=False, joints="hand", model=ep.planning
+        world,
+        tips + RETRACT * out.normals,
+        optimize=False,
+        joints="hand",
+        model=ep.planning,
+        avoid_collisions=True,
+        touchable=PERCEIVED_GEOM,
     )
     move_hand(world, sol.hand_q, RETRACT_TIME)
 
@@ -368,7 +377,14 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
     raised = checker.solve_ik(p_new - BACKOFF * R_new[:, 2], R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
-    _move_arm_and_hand(ep, raised.q, world.hand_targets())  # the hand keeps its retracted shape
+    # the arm moves on a collision-free harmonic path (the hand keeps its retracted shape)
+    mover = CollisionChecker(
+        world, model=ep.planning, hand_q=world.hand_qpos(), clearance=REPOSITION_CLEARANCE
+    )
+    path = plan_arm_path(mover, world.arm_qpos(), raised.q)
+    if not path.found:
+        raise ReachError(f"no collision-free way to the new posture: {path.reason}")
+    execute_path(world, path.path, settle=0.2)
     move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
     move_palm(world, checker, BACKOFF * R_new[:, 2], BACKOFF_TIME)
 
