@@ -229,6 +229,24 @@ def avoidance_groups(
     return [(near, AVOID_DISTANCE), ([(palm_geoms, env_geoms)], PALM_DISTANCE)]
 
 
+def _point_tasks(
+    sites: tuple[str, ...], points: NDArray[np.float64], cost: float
+) -> list[mink.FrameTask]:
+    """Position-only mink tasks putting each of ``sites`` on its row of ``points``."""
+    tasks = []
+    for site, p in zip(sites, points, strict=True):
+        task = mink.FrameTask(
+            robot.qualified(site),
+            "site",
+            position_cost=cost,
+            orientation_cost=0.0,
+            lm_damping=TIP_LM_DAMPING,
+        )
+        task.set_target(mink.SE3.from_translation(p))
+        tasks.append(task)
+    return tasks
+
+
 def _frozen_dofs(model: mujoco.MjModel, idx: HandIndices, joints: str) -> list[int]:
     movable = set(idx.finger_dofs.ravel().tolist())
     if joints == "arm+hand":
@@ -287,32 +305,13 @@ def solve_posture(
     )
     if goal.shape != (len(robot.FINGERS), 3) or not np.all(np.isfinite(goal)):
         raise PostureError(f"fingertip targets must be a finite (4, 3) array, got {goal.shape}")
-    tips = []
-    for site, p in zip(robot.FINGERTIP_SITES, goal, strict=True):
-        task = mink.FrameTask(
-            robot.qualified(site),
-            "site",
-            position_cost=TIP_COST,
-            orientation_cost=0.0,
-            lm_damping=TIP_LM_DAMPING,
-        )
-        task.set_target(mink.SE3.from_translation(p))
-        tips.append(task)
+    tips = _point_tasks(robot.FINGERTIP_SITES, goal, TIP_COST)
     pads = []
     if pad_centres is not None:
         centres = np.asarray(pad_centres, dtype=float)
         if centres.shape != goal.shape or not np.all(np.isfinite(centres)):
             raise PostureError(f"pad centres must be a finite (4, 3) array, got {centres.shape}")
-        for site, p in zip(robot.PAD_CENTRE_SITES, centres, strict=True):
-            task = mink.FrameTask(
-                robot.qualified(site),
-                "site",
-                position_cost=PAD_CENTRE_COST,
-                orientation_cost=0.0,
-                lm_damping=TIP_LM_DAMPING,
-            )
-            task.set_target(mink.SE3.from_translation(p))
-            pads.append(task)
+        pads = _point_tasks(robot.PAD_CENTRE_SITES, centres, PAD_CENTRE_COST)
     tips_and_pads = tips + pads
     limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
     avoidance: list[mink.CollisionAvoidanceLimit] = []

@@ -53,6 +53,7 @@ from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, Failure, State
 from hand_sim import robot
 from hand_sim.blocks import WOOD_DENSITY
+from hand_sim.contacts import robot_contacts
 from hand_sim.geometry import place_polygon, point_in_convex_polygon
 from vision import Observation, VisionError, analyze, overhead_camera
 from vision.errors import NotABlockError
@@ -75,6 +76,7 @@ SEPARATION_MARGIN = 0.002
 #: Fingers retract this far (m) from the block before the arm changes posture or the hand
 #: pre-shapes for the grasp.
 RETRACT = 0.015
+RETRACT_TRIES = 3
 #: Posture Control changes the arm's posture backed out by this much (m) along the approach axis,
 #: each straight move out and in taking BACKOFF_TIME (s): the fingers stay clear of the block.
 BACKOFF = 0.08
@@ -335,20 +337,26 @@ def fine_reach_state(ep: Episode) -> Step:
 
 # --- Posture Control ----------------------------------------------------------------------------
 def _retract(ep: Episode) -> None:
-    """Move every fingertip RETRACT straight out from the perceived block's nearest face."""
+    """Move every fingertip RETRACT straight out from the perceived block's nearest face, and
+    again (up to RETRACT_TRIES times in all) while any finger still touches the block: a finger
+    left on it would drag it when the palm backs away."""
     world = ep.world
-    tips = world.fingertip_positions()
-    out = project_to_surface(ep.target, tips, table_z=world.scene.table.height)
-    sol = solve_posture(
-        world,
-        tips + RETRACT * out.normals,
-        optimize=False,
-        joints="hand",
-        model=ep.planning,
-        avoid_collisions=True,
-        touchable=PERCEIVED_GEOM,
-    )
-    move_hand(world, sol.hand_q, RETRACT_TIME)
+    body = world.block_body_id(ep.target_name)
+    for _ in range(RETRACT_TRIES):
+        tips = world.fingertip_positions()
+        out = project_to_surface(ep.target, tips, table_z=world.scene.table.height)
+        sol = solve_posture(
+            world,
+            tips + RETRACT * out.normals,
+            optimize=False,
+            joints="hand",
+            model=ep.planning,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+        )
+        move_hand(world, sol.hand_q, RETRACT_TIME)
+        if not any(c.finger in robot.FINGERS for c in robot_contacts(world, body)):
+            return
 
 
 def _move_arm_and_hand(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
@@ -366,15 +374,19 @@ def _move_arm_and_hand(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> No
 
 def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
     """Take the arm and hand to a new posture near the block without sweeping a finger through
-    it: retract the fingers, back the palm out along its approach axis by BACKOFF, move the arm to
-    the new posture backed out likewise, shape the hand there, and approach in a straight line."""
+    it: retract the fingers, back the palm out along the approach by BACKOFF, move the arm to the
+    new posture backed out likewise (on a harmonic path), shape the hand there, and approach in a
+    straight line."""
     world = ep.world
     checker = CollisionChecker(world, model=ep.planning)
     _retract(ep)
-    _, R_now = checker.palm_pose(world.arm_targets())
-    move_palm(world, checker, -BACKOFF * R_now[:, 2], BACKOFF_TIME)
+    # out and back in along the coarse reach's approach (straight up for a top grasp, along the
+    # arm's radius for a lateral one), whatever tilt Posture Control gave the palm: the fingers
+    # then slide along the block's faces, not into them
+    axis = ep.coarse.goal.palm_rotation[:, 2]
+    move_palm(world, checker, -BACKOFF * axis, BACKOFF_TIME)
     p_new, R_new = checker.palm_pose(arm_q)
-    raised = checker.solve_ik(p_new - BACKOFF * R_new[:, 2], R_new, arm_q)
+    raised = checker.solve_ik(p_new - BACKOFF * axis, R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
     # the arm moves on a collision-free harmonic path (the hand keeps its retracted shape)
@@ -386,7 +398,7 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
         raise ReachError(f"no collision-free way to the new posture: {path.reason}")
     execute_path(world, path.path, settle=0.2)
     move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
-    move_palm(world, checker, BACKOFF * R_new[:, 2], BACKOFF_TIME)
+    move_palm(world, checker, BACKOFF * axis, BACKOFF_TIME)
 
 
 def posture_control(ep: Episode) -> Step:
