@@ -225,7 +225,9 @@ def _check_resume(out: Path, settings: dict[str, Any], resume: bool) -> list[dic
             raise BenchError(f"{saved_path} is not a bench's settings file; give another --out")
         differ = [k for k in RESUME_KEYS if saved.get(k) != settings[k]]
         if differ:
-            was = ", ".join(f"--{k} {saved.get(k)}" for k in differ)
+            was = ", ".join(
+                f"--{k} {saved[k]}" if saved.get(k) is not None else f"no --{k}" for k in differ
+            )
             raise CommandLineError(
                 "--resume",
                 f"{out} holds results of {was}; resume with the same options or give another --out",
@@ -243,8 +245,10 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
     if args.blocks is not None and args.scene != "random":
         raise CommandLineError("--blocks", "applies to --scene random only")
     blocks = args.blocks
+    # a scene file is named by its absolute path: workers may not share this folder
+    scene = str(Path(args.scene).resolve()) if args.scene.endswith(".toml") else args.scene
     first = args.seeds[0]
-    episode_scene(args.scene, first, blocks and blocks_for_seed(first, blocks.low, blocks.high))
+    episode_scene(scene, first, blocks and blocks_for_seed(first, blocks.low, blocks.high))
     if args.models is not None and not Path(args.models).is_dir():
         raise CommandLineError("--models", f"{args.models!r} is not a folder")
     from controllers.grasp.registry import make_composer
@@ -264,7 +268,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
     out = prepare_dir(args.out or Path("runs") / f"bench-{stem}-{args.controller}", "--out")
     models = None if args.models is None else str(Path(args.models).resolve())
     settings = {
-        "scene": args.scene,
+        "scene": scene,
         "blocks": None if blocks is None else str(blocks),
         "controller": args.controller,
         "approach": args.approach,
@@ -275,7 +279,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
     jobs = tuple(
         Job(
             seed=s,
-            scene=args.scene,
+            scene=scene,
             blocks=None if blocks is None else blocks_for_seed(s, blocks.low, blocks.high),
             controller=args.controller,
             approach=args.approach,
@@ -320,8 +324,7 @@ def _run_jobs(plan: Plan, lines: list[dict[str, Any]]) -> None:
     from fsm.bench_jobs import append_line
 
     results = plan.out / RESULTS_FILE
-    in_range = set(plan.seeds)
-    ok = sum(1 for line in lines if line["seed"] in in_range and line.get("success"))
+    ok = sum(1 for line in lines if line["seed"] in plan.seeds and line.get("success"))
     failed = len(plan.seeds) - len(plan.jobs) - ok
     with ExitStack() as stack:
         runner = _enter_runner(stack, plan) if plan.jobs else None
@@ -383,7 +386,7 @@ def run(argv: Sequence[str] | None) -> int:
     print(
         f"{_episodes(s.episodes)} in {plan.out / RESULTS_FILE}: {s.successes} delivered "
         f"({_pct(s.rate.estimate)}, Wilson 95 % [{_pct(s.rate.low)}, {_pct(s.rate.high)}]), "
-        f"{s.episodes - s.successes} failed; {len(plan.jobs)} run now in "
+        f"{s.episodes - s.successes} failed; {len(lines) - len(plan.done)} run now in "
         f"{time.perf_counter() - wall0:.0f} s; wrote {report}"
     )
     return code

@@ -54,10 +54,10 @@ def _pct(x: float) -> str:
 def plot_success(s: BenchSummary, path: Path) -> None:
     fig = _figure()
     ax = fig.add_subplot()
-    labels = ["all"]
+    labels = [f"all\n(n = {s.episodes})"]
     rates = [s.rate]
     for blocks, n, k in s.by_blocks:
-        labels.append(f"{blocks} blocks" if blocks is not None else "scene file")
+        labels.append(f"{blocks} blocks\n(n = {n})" if blocks is not None else f"(n = {n})")
         rates.append(wilson_interval(k, n))
     x = np.arange(len(rates))
     est = np.array([100 * r.estimate for r in rates])
