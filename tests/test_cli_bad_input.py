@@ -16,7 +16,14 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks import arm_reach, bench_grasp, bench_reach, bench_sim, hand_reachability
+from benchmarks import (
+    arm_reach,
+    bench_grasp,
+    bench_parallel,
+    bench_reach,
+    bench_sim,
+    hand_reachability,
+)
 from controllers.grasp import cli as grasp_cli
 from hand_sim import show
 from vision import bench as vision_bench
@@ -202,6 +209,8 @@ BENCHMARK_CASES = [
     (hand_reachability.main, ["--objects", "circle"], "argument --objects: invalid choice"),
     (hand_reachability.main, ["--seed", "-1"], "argument --seed"),
     (hand_reachability.main, ["--samples", "0"], "argument --samples"),
+    (bench_parallel.main, ["--workers", "1"], "argument --workers"),
+    (bench_parallel.main, ["--seeds", "4:4"], "argument --seeds"),
 ]
 
 
@@ -277,6 +286,7 @@ ENTRY_POINTS = [
     (["benchmarks.bench_reach", "--resolutions", "0"], "--resolutions"),
     (["benchmarks.arm_reach", "--step", "0"], "--step"),
     (["benchmarks.hand_reachability", "--objects", "circle"], "--objects"),
+    (["fsm.bench", "--seeds", "0:0"], "--seeds"),
 ]
 
 

@@ -38,6 +38,7 @@ SCRIPTS = {
     "graspsim-show": "python -m hand_sim.show",
     "graspsim-vision": "python -m vision",
     "graspsim-vision-bench": "python -m vision.bench",
+    "graspsim-bench": "python -m fsm.bench",
 }
 #: Seconds allowed per subprocess (the whole module takes well under a minute on 2 cores).
 TIMEOUT = 150

@@ -1,0 +1,171 @@
+"""The numbers of a bench report, from the lines of ``results.jsonl`` alone: the success rate with
+its Wilson score interval, the failure reasons, the place error of the judged deliveries and the
+wall time each state of the task cycle (section 5.2, Figure 14) took."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import ndtri
+
+from fsm.states import State
+
+#: Two-sided 95 % normal quantile (1.95996...).
+Z95 = float(ndtri(0.975))
+#: Percentiles of the place error the report gives.
+PLACE_PERCENTILES = (50, 90, 95, 99)
+#: Label of a failed episode without a named reason (should not happen; shown if it does).
+NO_REASON = "(no reason given)"
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A proportion and its confidence interval (all in [0, 1])."""
+
+    estimate: float
+    low: float
+    high: float
+
+
+def wilson_interval(successes: int, trials: int, z: float = Z95) -> Interval:
+    """Wilson score interval of a binomial proportion (Wilson 1927; Agresti & Coull 1998):
+    centre (p + z^2/2n) / (1 + z^2/n), half-width z sqrt(p(1-p)/n + z^2/4n^2) / (1 + z^2/n)."""
+    if trials <= 0 or not 0 <= successes <= trials:
+        raise ValueError(f"need 0 <= successes <= trials and trials > 0, got {successes}/{trials}")
+    n, p = float(trials), successes / trials
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2.0 * n)) / denom
+    half = z * math.sqrt(p * (1.0 - p) / n + z * z / (4.0 * n * n)) / denom
+    return Interval(p, max(0.0, centre - half), min(1.0, centre + half))
+
+
+@dataclass(frozen=True)
+class FailureRow:
+    reason: str
+    episodes: int
+    seeds: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class StateRow:
+    """Wall time of one state over the episodes (seconds)."""
+
+    state: str
+    visits: int
+    episodes: int  #: episodes that entered it
+    total: float
+    mean_per_visit: float
+    p95_per_visit: float
+    mean_per_episode: float  #: total over all the bench's episodes
+
+
+@dataclass(frozen=True)
+class BenchSummary:
+    """Everything the report shows."""
+
+    episodes: int
+    successes: int
+    rate: Interval
+    by_blocks: tuple[tuple[int | None, int, int], ...]  #: (blocks, episodes, successes)
+    failures: tuple[FailureRow, ...]  #: most frequent first
+    place_error_mm: tuple[float, ...]  #: every judged delivery, in seed order
+    place_percentiles: tuple[tuple[int, float], ...]  #: (percentile, mm); empty if none judged
+    states: tuple[StateRow, ...]  #: in the order of the task cycle
+    wall_per_episode: tuple[float, ...]  #: s
+    sim_per_episode: tuple[float, ...]  #: s
+    seeds: tuple[int, ...]
+
+
+def _state_order(names: set[str]) -> list[str]:
+    known = [s.value for s in State if s.value in names]
+    return known + sorted(names - set(known))
+
+
+def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
+    """The report's numbers from ``results.jsonl`` lines (one per episode; a seed's first line
+    counts if it appears twice)."""
+    unique: dict[int, dict[str, Any]] = {}
+    for line in lines:
+        unique.setdefault(int(line["seed"]), line)
+    eps = [unique[s] for s in sorted(unique)]
+    if not eps:
+        raise ValueError("no episode to summarize")
+    ok = [bool(e.get("success")) for e in eps]
+    blocks: dict[int | None, list[int]] = defaultdict(lambda: [0, 0])
+    for e, good in zip(eps, ok, strict=True):
+        row = blocks[e.get("blocks")]
+        row[0] += 1
+        row[1] += good
+    by_blocks = tuple(
+        (b, n, k) for b, (n, k) in sorted(blocks.items(), key=lambda kv: (kv[0] is None, kv[0]))
+    )
+    failed: dict[str, list[int]] = defaultdict(list)
+    for e, good in zip(eps, ok, strict=True):
+        if not good:
+            failed[e.get("failure") or NO_REASON].append(int(e["seed"]))
+    failures = tuple(
+        FailureRow(reason, len(seeds), tuple(seeds))
+        for reason, seeds in sorted(failed.items(), key=lambda kv: (-len(kv[1]), kv[0]))
+    )
+    errors = [
+        float(c["judgement"]["place_error_mm"])
+        for e in eps
+        for c in e.get("cycles") or []
+        if isinstance(c.get("judgement"), dict) and c["judgement"].get("place_error_mm") is not None
+    ]
+    percentiles = (
+        tuple((q, float(np.percentile(errors, q))) for q in PLACE_PERCENTILES) if errors else ()
+    )
+    per_visit: dict[str, list[float]] = defaultdict(list)
+    entered: Counter[str] = Counter()
+    for e in eps:
+        seen = set()
+        for v in e.get("visits") or []:
+            per_visit[v["state"]].append(float(v["wall_seconds"]))
+            seen.add(v["state"])
+        entered.update(seen)
+    states = tuple(
+        StateRow(
+            state=name,
+            visits=len(per_visit[name]),
+            episodes=entered[name],
+            total=float(np.sum(per_visit[name])),
+            mean_per_visit=float(np.mean(per_visit[name])),
+            p95_per_visit=float(np.percentile(per_visit[name], 95)),
+            mean_per_episode=float(np.sum(per_visit[name])) / len(eps),
+        )
+        for name in _state_order(set(per_visit))
+    )
+    k = sum(ok)
+    return BenchSummary(
+        episodes=len(eps),
+        successes=k,
+        rate=wilson_interval(k, len(eps)),
+        by_blocks=by_blocks,
+        failures=failures,
+        place_error_mm=tuple(errors),
+        place_percentiles=percentiles,
+        states=states,
+        wall_per_episode=tuple(float(e.get("wall_time", 0.0)) for e in eps),
+        sim_per_episode=tuple(float(e.get("sim_time", 0.0)) for e in eps),
+        seeds=tuple(sorted(unique)),
+    )
+
+
+def seed_ranges(seeds: Sequence[int]) -> str:
+    """Sorted seeds as compact ranges: ``0-4, 7, 9-10``."""
+    parts: list[str] = []
+    ordered = sorted(set(seeds))
+    i = 0
+    while i < len(ordered):
+        j = i
+        while j + 1 < len(ordered) and ordered[j + 1] == ordered[j] + 1:
+            j += 1
+        parts.append(str(ordered[i]) if i == j else f"{ordered[i]}-{ordered[j]}")
+        i = j + 1
+    return ", ".join(parts)

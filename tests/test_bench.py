@@ -1,0 +1,357 @@
+"""``python -m fsm.bench``: the per-seed block count, the results file, the report's numbers (the
+Wilson interval against scipy's independent implementation), bad input, and real episodes run in
+2 worker processes, resumed in this process and on a local Ray instance, giving the same results
+wherever they ran (wall times aside)."""
+
+from __future__ import annotations
+
+import fcntl
+import importlib.util
+import json
+import os
+import re
+import shutil
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from scipy.stats import binomtest
+
+from fsm import bench, handlers
+from fsm.bench_jobs import (
+    CRASHED,
+    BenchError,
+    Job,
+    append_line,
+    blocks_for_seed,
+    drop_torn_tail,
+    read_results,
+    run_job,
+)
+from fsm.bench_report import DPI, FIG_SIZE, FIGURES, write_report
+from fsm.bench_stats import summarize, wilson_interval
+from fsm.states import State
+
+#: The controller the episode tests run (needs no trained model).
+CONTROLLER = "kb"
+QUICK = ["--scene", "random", "--blocks", "3:5", "--controller", CONTROLLER]
+
+
+# --- helpers --------------------------------------------------------------------------------------
+def lines_of(folder: Path) -> dict[int, dict[str, Any]]:
+    return {line["seed"]: line for line in read_results(folder / "results.jsonl")}
+
+
+def without_wall_times(line: dict[str, Any]) -> dict[str, Any]:
+    """A results line with what depends on the machine's load taken out."""
+    out = json.loads(json.dumps(line))
+    out.pop("wall_time")
+    for v in out["visits"]:
+        v.pop("wall_seconds")
+    return out
+
+
+def table(report: str, heading: str) -> list[list[str]]:
+    """Rows (cells) of the first markdown table under ``## heading``, header excluded."""
+    section = report.split(f"## {heading}\n", 1)[1].split("\n## ", 1)[0]
+    rows = [r for r in section.splitlines() if r.startswith("|")]
+    return [[c.strip() for c in r.strip("|").split("|")] for r in rows[2:]]
+
+
+def percent(cell: str) -> float:
+    return float(cell.rstrip(" %")) / 100.0
+
+
+def interval(cell: str) -> tuple[float, float]:
+    low, high = re.fullmatch(r"\[(.*) %, (.*) %\]", cell).groups()
+    return float(low) / 100.0, float(high) / 100.0
+
+
+def check_report(folder: Path) -> None:
+    """report.md against results.jsonl, the Wilson interval against scipy's."""
+    lines = list(lines_of(folder).values())
+    report = (folder / "report.md").read_text()
+    n, k = len(lines), sum(bool(x["success"]) for x in lines)
+    rows = {r[0]: r for r in table(report, "Success rate")}
+    _, episodes, delivered, rate, wilson = rows["all"]
+    assert (int(episodes), int(delivered)) == (n, k)
+    assert percent(rate) == pytest.approx(k / n, abs=5e-4)
+    ref = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert interval(wilson) == pytest.approx((ref.low, ref.high), abs=5e-4)
+    per_blocks = Counter(x["blocks"] for x in lines)
+    for blocks, count in per_blocks.items():
+        assert int(rows[str(blocks)][1]) == count
+    failed = Counter(x["failure"] for x in lines if not x["success"])
+    if failed:
+        got = {r[0]: int(r[1]) for r in table(report, "Failure reasons")}
+        assert got == dict(failed)
+    else:
+        assert "No episode failed." in report
+    errors = [
+        c["judgement"]["place_error_mm"]
+        for x in lines
+        for c in x["cycles"]
+        if c.get("judgement") is not None
+    ]
+    if errors:
+        (row,) = table(report, "Place error")
+        assert int(row[0]) == len(errors)
+        assert float(row[1]) == pytest.approx(np.percentile(errors, 50), abs=0.051)
+        assert float(row[-1]) == pytest.approx(max(errors), abs=0.051)
+    per_state = {r[0]: r for r in table(report, "Wall time per state")}
+    for state in {v["state"] for x in lines for v in x["visits"]}:
+        total = sum(v["wall_seconds"] for x in lines for v in x["visits"] if v["state"] == state)
+        assert float(per_state[state][5]) == pytest.approx(total / n, abs=0.006)
+    for name in FIGURES.values():
+        img = cv2.imread(str(folder / name))
+        assert img is not None and img.shape == (FIG_SIZE[1] * DPI, FIG_SIZE[0] * DPI, 3)
+
+
+# --- the block count ------------------------------------------------------------------------------
+def test_block_count_is_drawn_from_the_seed_alone_and_uniformly() -> None:
+    seeds = range(3000)
+    counts = [blocks_for_seed(s, 3, 5) for s in seeds]
+    assert counts == [blocks_for_seed(s, 3, 5) for s in reversed(seeds)][::-1]
+    assert counts[:5] == [int(np.random.default_rng([s, 12]).integers(3, 6)) for s in range(5)]
+    freq = Counter(counts)
+    assert set(freq) == {3, 4, 5}
+    # each count 1/3 of the seeds, within 4 standard deviations of a binomial(3000, 1/3)
+    assert all(abs(c - 1000) < 4 * np.sqrt(3000 * (1 / 3) * (2 / 3)) for c in freq.values())
+    assert {blocks_for_seed(s, 4, 4) for s in range(20)} == {4}
+
+
+# --- the results file -----------------------------------------------------------------------------
+def test_results_file_keeps_whole_lines_and_drops_a_torn_one(tmp_path: Path) -> None:
+    path = tmp_path / "results.jsonl"
+    append_line(path, {"seed": 3, "success": True})
+    append_line(path, {"seed": 1, "success": False, "failure": "x"})
+    with open(path, "a") as f:
+        f.write('{"seed": 2, "succ')  # a writer killed mid-line
+    assert [x["seed"] for x in read_results(path)] == [3, 1]
+    assert drop_torn_tail(path) and not drop_torn_tail(path)
+    append_line(path, {"seed": 2, "success": True})
+    assert [x["seed"] for x in read_results(path)] == [3, 1, 2]
+    path.write_text(path.read_text().replace('"seed":1', '"seed":"one"'))
+    with pytest.raises(BenchError, match="line 2"):
+        read_results(path)
+
+
+# --- the report -----------------------------------------------------------------------------------
+def _synthetic_lines() -> list[dict[str, Any]]:
+    """Ten episodes with known outcomes: 7 delivered, 2 fingers that cannot reach, 1 crash."""
+    rng = np.random.default_rng(5)
+    states = [s.value for s in State][:7]
+    lines = []
+    for seed in range(10):
+        failure = {3: "fingers cannot reach", 7: "fingers cannot reach", 8: CRASHED}.get(seed)
+        entered = states if failure is None else states[:3]
+        lines.append(
+            {
+                "seed": seed,
+                "blocks": 3 + seed % 3,
+                "success": failure is None,
+                "failure": failure,
+                "failure_detail": "",
+                "visits": [
+                    {"state": s, "wall_seconds": float(rng.uniform(0.1, 5.0))} for s in entered
+                ],
+                "cycles": []
+                if failure
+                else [{"judgement": {"place_error_mm": float(rng.gamma(2.0, 2.0))}}],
+                "sim_time": 30.0,
+                "wall_time": 12.0,
+            }
+        )
+    return lines
+
+
+def test_report_numbers_match_the_results(tmp_path: Path) -> None:
+    lines = _synthetic_lines()
+    for line in lines:
+        append_line(tmp_path / "results.jsonl", line)
+    settings = {"scene": "random", "blocks": "3:5", "controller": "kb", "approach": "auto"}
+    write_report(tmp_path, lines, settings)
+    check_report(tmp_path)
+    report = (tmp_path / "report.md").read_text()
+    rows = {r[0]: r for r in table(report, "Failure reasons")}
+    assert rows["fingers cannot reach"][3] == "3, 7" and rows[CRASHED][3] == "8"
+    assert "--seeds 0:10 --blocks 3:5 --controller kb" in report
+    s = summarize([*lines, dict(lines[0], success=False)])  # a seed's first line counts
+    assert (s.episodes, s.successes) == (10, 7)
+
+
+@pytest.mark.parametrize(("k", "n"), [(0, 10), (1, 10), (7, 10), (10, 10), (190, 200), (3, 1000)])
+def test_wilson_interval_is_scipys(k: int, n: int) -> None:
+    ref = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    w = wilson_interval(k, n)
+    assert (w.low, w.high) == pytest.approx((ref.low, ref.high), abs=1e-12)
+    assert w.estimate == k / n
+
+
+def test_wilson_interval_textbook_value() -> None:
+    # 0 successes in 10: the Wilson upper bound is 0.2775 (z = 1.96)
+    assert wilson_interval(0, 10).high == pytest.approx(0.27753, abs=1e-5)
+
+
+# --- bad input ------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--seeds", "5:5"], "--seeds"),
+        (["--seeds", "0-200"], "FIRST:END"),
+        (["--seeds", "-1:4"], "--seeds"),
+        (["--blocks", "0:3"], "--blocks"),
+        (["--blocks", "5:3"], "LO:HI"),
+        (["--blocks", "3:13"], "<= 12"),
+        (["--scene", "clutter3", "--blocks", "3"], "random only"),
+        (["--scene", "nowhere"], "unknown scene"),
+        (["--workers", "0"], "--workers"),
+        (["--controller", "xx"], "--controller"),
+        (["--out", ""], "--out"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "o"
+    args = [*argv, "--controller", CONTROLLER] if "--controller" not in argv else argv
+    args = args if "--out" in argv else [*args, "--out", str(out)]
+    assert bench.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_controller_without_models_is_refused_before_anything_runs(tmp_path, capsys) -> None:
+    models, out = tmp_path / "empty", tmp_path / "o"
+    models.mkdir()
+    argv = ["--controller", "ql", "--models", str(models), "--out", str(out)]
+    assert bench.main(argv) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "no trained" in err and not out.exists()
+
+
+def test_ray_missing_is_one_line(tmp_path: Path, capsys, monkeypatch) -> None:
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a)
+    )
+    argv = ["--ray", "local", "--controller", CONTROLLER, "--out", str(tmp_path / "o")]
+    assert bench.main(argv) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "--ray" in err and "graspsim[ray]" in err
+
+
+def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsys) -> None:
+    lines = _synthetic_lines()
+    for line in lines:
+        append_line(tmp_path / "results.jsonl", line)
+    settings = {
+        "scene": "random",
+        "blocks": "3:5",
+        "controller": CONTROLLER,
+        "approach": "auto",
+        "models": None,
+    }
+    (tmp_path / "bench.json").write_text(json.dumps(settings))
+    before = (tmp_path / "results.jsonl").read_bytes()
+    for argv, message in (
+        ([*QUICK, "--seeds", "0:10"], "--resume"),
+        ([*QUICK, "--seeds", "0:10", "--resume", "--approach", "top"], "--approach auto"),
+        (["--seeds", "0:10", "--resume", "--controller", CONTROLLER], "--blocks 3:5"),
+    ):
+        assert bench.main([*argv, "--out", str(tmp_path)]) == 2
+        (err,) = capsys.readouterr().err.strip().splitlines()
+        assert message in err, err
+    assert (tmp_path / "results.jsonl").read_bytes() == before
+    # everything asked for is done: nothing runs, the report is rebuilt
+    assert bench.main([*QUICK, "--seeds", "0:10", "--resume", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "results.jsonl").read_bytes() == before
+    check_report(tmp_path)
+
+
+# --- real episodes --------------------------------------------------------------------------------
+def test_a_crashed_episode_is_a_failure_with_its_recording(tmp_path: Path, monkeypatch) -> None:
+    def bug(ep):
+        raise RuntimeError("a bug in Select/Model")
+
+    monkeypatch.setitem(handlers.HANDLERS, State.SELECT_MODEL, bug)
+    result = run_job(Job(seed=2, blocks=3, controller=CONTROLLER))
+    line = result.line
+    assert (line["seed"], line["blocks"], line["success"]) == (2, 3, False)
+    assert line["failure"] == CRASHED
+    assert "RuntimeError: a bug in Select/Model" in line["failure_detail"]
+    assert line["rrd"] == "rrd/seed-000002.rrd" and result.rrd is not None and len(result.rrd) > 0
+    assert line["options"]["out"] is None and line["visits"][0]["state"] == "Select/Model"
+
+
+@pytest.fixture(scope="module")
+def two_workers(tmp_path_factory) -> Path:
+    """Seeds 0-2 (3 to 5 blocks each) in 2 worker processes, run once per test session: the
+    workers of ``pytest -n`` share it through a lock (both cores are busy with it anyway)."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # this session's folder, shared by its xdist workers
+    out = root / "bench-two-workers"
+    with open(root / "bench-two-workers.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (out / "report.md").is_file():
+            shutil.rmtree(out, ignore_errors=True)
+            argv = [*QUICK, "--seeds", "0:3", "--workers", "2", "--out", str(out)]
+            assert bench.main(argv) == 0
+    return out
+
+
+def test_two_workers_write_results_recordings_and_report(two_workers: Path) -> None:
+    lines = lines_of(two_workers)
+    assert sorted(lines) == [0, 1, 2]
+    summary_keys = {"success", "failure", "failure_detail", "visits", "cycles", "sim_time"}
+    for seed, line in lines.items():
+        assert line["blocks"] == blocks_for_seed(seed, 3, 5)
+        assert summary_keys <= set(line) and line["options"]["seed"] == seed
+        assert line["options"]["blocks"] == line["blocks"]
+        kept = sorted(p.name for p in (two_workers / "rrd").glob("*.rrd"))
+        if line["success"]:  # judged physically: the block where it was asked to go
+            assert line["cycles"][0]["judgement"]["place_error_mm"] < 20.0
+            assert line["rrd"] is None and f"seed-{seed:06d}.rrd" not in kept
+        else:
+            assert (two_workers / line["rrd"]).stat().st_size > 0
+    assert json.loads((two_workers / "bench.json").read_text())["blocks"] == "3:5"
+    check_report(two_workers)
+    assert not [p for p in two_workers.iterdir() if p.name.startswith(".")]
+
+
+def test_resume_in_one_process_gives_the_two_workers_results(two_workers, tmp_path) -> None:
+    """Seed 0 is kept, seeds 1 and 2 run one after the other in this process: the same lines as
+    the 2-worker run, wall times aside."""
+    out = tmp_path / "resumed"
+    out.mkdir()
+    shutil.copy(two_workers / "bench.json", out)
+    first = (two_workers / "results.jsonl").read_text().splitlines(keepends=True)
+    kept = next(x for x in first if json.loads(x)["seed"] == 0)
+    (out / "results.jsonl").write_text(kept + '{"seed": 1, "succ')  # killed while appending seed 1
+    argv = [*QUICK, "--seeds", "0:3", "--workers", "1", "--resume", "--out", str(out)]
+    assert bench.main(argv) == 0
+    text = (out / "results.jsonl").read_text()
+    assert text.startswith(kept) and text.count("\n") == 3
+    ours, theirs = lines_of(out), lines_of(two_workers)
+    assert ours[0] == theirs[0]  # not run again
+    for seed in (1, 2):
+        assert without_wall_times(ours[seed]) == without_wall_times(theirs[seed])
+    check_report(out)
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("ray") is None,
+    reason="ray is not installed (the optional extra: pip install -e '.[ray]')",
+)
+def test_ray_local_gives_the_same_results(two_workers: Path, tmp_path: Path) -> None:
+    out = tmp_path / "ray"
+    argv = [*QUICK, "--seeds", "0:2", "--ray", "local", "--workers", "2", "--out", str(out)]
+    assert bench.main(argv) == 0
+    ours, theirs = lines_of(out), lines_of(two_workers)
+    assert sorted(ours) == [0, 1]
+    for seed in (0, 1):
+        assert without_wall_times(ours[seed]) == without_wall_times(theirs[seed])
+    check_report(out)
