@@ -394,9 +394,10 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
         world, model=ep.planning, hand_q=world.hand_qpos(), clearance=REPOSITION_CLEARANCE
     )
     path = plan_arm_path(mover, world.arm_qpos(), raised.q)
-    if not path.found:
-        raise ReachError(f"no collision-free way to the new posture: {path.reason}")
-    execute_path(world, path.path, settle=0.2)
+    if path.found:
+        execute_path(world, path.path, settle=0.2)
+    else:  # e.g. the backed-out hand already grazes a neighbour: straight there, in joint space
+        _move_arm_and_hand(ep, raised.q, world.hand_targets())
     move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
     move_palm(world, checker, BACKOFF * axis, BACKOFF_TIME)
 
