@@ -347,12 +347,24 @@ def solve_posture(
     def tip_error() -> NDArray[np.float64]:
         return np.linalg.norm(cfg.data.site_xpos[idx.tip_sites] - goal, axis=1)
 
-    def ik_step(tasks: list[mink.Task]) -> None:
-        """One damped differential-IK step of ``tasks`` within the limits, integrated in place."""
-        v = mink.solve_ik(
-            cfg, tasks, IK_DT, QP_SOLVER, damping=IK_DAMPING, limits=limits, constraints=constraints
-        )
+    def ik_step(tasks: list[mink.Task]) -> bool:
+        """One damped differential-IK step of ``tasks`` within the limits, integrated in place;
+        False when the QP has no solution (the limits contradict each other, e.g. a start
+        already inside an avoided distance): the configuration is then left as it is."""
+        try:
+            v = mink.solve_ik(
+                cfg,
+                tasks,
+                IK_DT,
+                QP_SOLVER,
+                damping=IK_DAMPING,
+                limits=limits,
+                constraints=constraints,
+            )
+        except mink.NoSolutionFound:
+            return False
         cfg.integrate_inplace(v, IK_DT)
+        return True
 
     arm_adr = model.jnt_qposadr[[model.joint(robot.qualified(j)).id for j in robot.ARM_JOINTS]]
     hand_adr = idx.finger_qpos.ravel()
@@ -376,7 +388,8 @@ def solve_posture(
         if tip_error().max() < 0.5 * tolerance and last_pad - now_pad < PAD_SETTLED:
             break
         last_pad = now_pad
-        ik_step(tips_and_pads)
+        if not ik_step(tips_and_pads):
+            break
         path.append(snapshot())
         iterations += 1
     err = tip_error()
@@ -385,11 +398,14 @@ def solve_posture(
         history = [log_manipulability(model, cfg.data, idx)]
         for _ in range(posture_iterations):
             q_before = cfg.q.copy()
-            ik_step([*tips_and_pads, manip])
+            solved = ik_step([*tips_and_pads, manip])
             # let the fingertip tasks alone pull the tips back onto their targets
             for _ in range(TIP_RECOVERY_STEPS):
-                ik_step(tips_and_pads)
+                solved = solved and ik_step(tips_and_pads)
             iterations += 1
+            if not solved:
+                cfg.update(q_before)
+                break
             value = log_manipulability(model, cfg.data, idx)
             if tip_error().max() > 0.5 * tolerance or not value > history[-1] or not clear():
                 cfg.update(q_before)
