@@ -42,6 +42,48 @@ def test_three_against_one_is_unbalanced():
     assert grasp_score(pts, nrm).s_g == pytest.approx(0.5, abs=1e-6)
 
 
+def test_a_task_force_loads_the_contact_it_pushes_against():
+    # antipodal contacts, task (0.5, 0, 0): (N_2 - N_1) / 2 = 0.5, so N = (1, 2) and S_G = 0.5
+    pts, nrm = [(1, 0), (-1, 0)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]]
+    s = grasp_score(pts, nrm, task=(0.5, 0.0, 0.0))
+    assert s.s_g == pytest.approx(0.5, abs=1e-6)
+    np.testing.assert_allclose(s.normal_forces, [1.0, 2.0], atol=1e-6)
+    np.testing.assert_allclose(s.tangential_forces, [0.0, 0.0], atol=1e-6)
+    flipped = grasp_score(pts, nrm, task=(-0.5, 0.0, 0.0))
+    np.testing.assert_allclose(flipped.normal_forces, [2.0, 1.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("tau", [0.3, -0.3])
+def test_a_task_moment_is_made_by_tangential_forces_of_its_sign(tau):
+    # antipodal contacts: a CCW moment tau needs T_1 = T_2 = tau along the CCW tangents, S_G = |tau|
+    s = grasp_score([(1, 0), (-1, 0)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]], (0, 0, tau))
+    assert s.s_g == pytest.approx(abs(tau), abs=1e-6)
+    np.testing.assert_allclose(s.tangential_forces, [tau, tau], atol=1e-6)
+    np.testing.assert_allclose(s.normal_forces, [1.0, 1.0], atol=1e-6)
+
+
+@pytest.mark.parametrize(("tau", "expected"), [(0.5, 0.0), (0.0, 0.5), (-0.5, 1.0)])
+def test_the_offset_pair_suits_one_moment_sign(tau, expected):
+    """Contacts (1, .5) and (-1, -.5): unit normal forces make a CCW moment of 1/2 on their own
+    (p x f = 0.5 each); T = tau - N/2 balances a task moment tau. tau = 0.5 needs no friction
+    (S_G = 0); tau = -0.5 needs T = -N, the edge of the cone (S_G = 1)."""
+    s = grasp_score(
+        [(1, 0.5), (-1, -0.5)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]], (0.0, 0.0, tau)
+    )
+    assert s.feasible
+    assert s.s_g == pytest.approx(expected, abs=1e-6)
+
+
+def test_friction_coefficient_bounds_the_tangential_force():
+    # adjacent faces need |T| = N (S_G = 1, above); with mu = 0.5 no force balances
+    adjacent = ([(1, 0), (0, 1)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["+y"]])
+    assert not grasp_score(*adjacent, friction=0.5).feasible
+    # the offset pair needs |T| = N/2: feasible at mu = 0.5, not at mu = 0.4
+    offset = ([(1, 0.5), (-1, -0.5)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]])
+    assert grasp_score(*offset, friction=0.5).s_g == pytest.approx(0.5, abs=1e-6)
+    assert not grasp_score(*offset, friction=0.4).feasible
+
+
 def linprog_score(points, normals, task=None, mu=1.0):
     """Independent S_G with scipy/HiGHS over x = [N, T+, T-]."""
     p, nrm = np.asarray(points, float), np.asarray(normals, float)
@@ -81,6 +123,22 @@ def test_score_agrees_with_an_independent_lp_solver(name):
                 n_feasible += 1
                 assert ours.s_g == pytest.approx(ref, abs=1e-5)
     assert n_feasible > 20
+
+
+def test_score_with_lower_friction_agrees_with_the_independent_lp():
+    poly = paper_object("square").unit_moment()
+    rng = np.random.default_rng(8)
+    task = np.array([-0.03, 0.02, -0.08])
+    results = set()
+    for _ in range(40):
+        f = poly.locate(rng.uniform(-np.pi, np.pi, 3))
+        ours = grasp_score(f.point, f.normal, task, friction=0.6)
+        ref = linprog_score(f.point, f.normal, task, mu=0.6)
+        assert ours.feasible == (ref is not None)
+        results.add(ours.feasible)
+        if ref is not None:
+            assert ours.s_g == pytest.approx(ref, abs=1e-5)
+    assert results == {True, False}
 
 
 def test_bad_input_is_refused():
