@@ -295,9 +295,11 @@ def test_point_in_polygon_and_rectangle_containment() -> None:
     assert inside_rectangle(square, (0.5, 0.5), (1.0, 1.0))
     assert not inside_rectangle(square, (0.5, 0.5), (1.0, 1.0), margin=0.01)
     assert inside_rectangle(square, (0.5, 0.5), (1.04, 1.04), margin=0.01)
-    assert not inside_rectangle(
-        square + np.array([0.0, 0.03]), (0.5, 0.5), (1.04, 1.04), margin=0.01
-    )
+    for shift in ((0.0, 0.03), (-0.03, 0.0)):  # out at the top, out at the left
+        moved = square + np.array(shift)
+        assert not inside_rectangle(moved, (0.5, 0.5), (1.04, 1.04), margin=0.01)
+    assert inside_rectangle((-0.4, 0.3), (0.0, 0.0), (0.9, 0.9))
+    assert not inside_rectangle((-0.46, 0.0), (0.0, 0.0), (0.9, 0.9))
 
 
 def test_place_polygon_rotates_then_translates() -> None:

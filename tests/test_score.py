@@ -1,10 +1,11 @@
 """The grasp evaluation metric S_G (Eq. 13): hand-derived cases and an independent LP solver."""
 
+import clarabel
 import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from controllers.grasp import grasp_score, paper_object
+from controllers.grasp import SUCCESS_THRESHOLD, GraspScore, grasp_score, paper_object
 
 SQUARE_NORMALS = {"+x": (1.0, 0.0), "-x": (-1.0, 0.0), "+y": (0.0, 1.0), "-y": (0.0, -1.0)}
 
@@ -146,3 +147,65 @@ def test_bad_input_is_refused():
         grasp_score([(1, 0), (0, 1)], [(1, 0)])
     with pytest.raises(ValueError, match="finite"):
         grasp_score([(np.nan, 0), (0, 1)], [(1, 0), (0, 1)])
+
+
+def test_success_is_s_g_at_most_0_4():
+    """Section 3.5: a grasp with S_G <= 0.4 is a success (the threshold itself included)."""
+    assert SUCCESS_THRESHOLD == 0.4
+    none = np.zeros(0)
+    assert GraspScore(True, 0.4, none, none, "Solved").success
+    assert not GraspScore(True, 0.4000001, none, none, "Solved").success
+    assert not GraspScore(False, 0.1, none, none, "PrimalInfeasible").success
+
+
+def test_one_contact_is_infeasible_and_no_contact_is_an_error():
+    s = grasp_score([(1, 0)], [SQUARE_NORMALS["+x"]])
+    assert not s.feasible and s.s_g == float("inf")
+    assert s.normal_forces.size == 0 and s.tangential_forces.size == 0
+    with pytest.raises(ValueError, match="as many normals"):
+        grasp_score(np.zeros((0, 2)), np.zeros((0, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        grasp_score([(1, 0), (0, 1)], [(1, 0), (np.inf, 1)])
+
+
+def test_the_solver_prints_nothing(capfd):
+    grasp_score([(1, 0), (-1, 0)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]])
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+
+
+class _FakeSolution:
+    def __init__(self, x):
+        self.x = x
+        self.status = clarabel.SolverStatus.Solved
+
+
+@pytest.mark.parametrize(
+    ("x", "feasible"),
+    [
+        ([1.0, 1.0, 0.0, 0.0, 0.0, 0.0], True),  # N = (1, 1): balances the antipodal pair
+        ([1.0, 1.2, 0.0, 0.0, 0.0, 0.0], False),  # net force 0.1 != 0
+        ([1.0, 1.0, 0.0, 3e-6, 0.0, 3e-6], False),  # net force 1.5e-6 (tolerance 1e-6)
+        ([0.5, 0.5, 0.0, 0.0, 0.0, 0.0], False),  # balanced, but N < 1
+        ([1.0, 1.0, 0.5, 0.5] + [0.0] * 8, False),  # four contacts, balanced, two N < 1
+        ([1.0, 1.0, 1.0, 1.0] + [0.0] * 8, True),
+    ],
+)
+def test_a_solver_answer_that_breaks_the_constraints_is_not_trusted(monkeypatch, x, feasible):
+    """The LP's answer is checked (net wrench = task within 1e-6, every N >= 1) before it is
+    believed, whatever status the solver reports."""
+    pts = [(1, 0), (-1, 0), (0, 1), (0, -1)][: len(x) // 3]
+    nrm = [SQUARE_NORMALS[k] for k in ("+x", "-x", "+y", "-y")][: len(x) // 3]
+
+    class FakeSolver:
+        def __init__(self, *args):
+            pass
+
+        def solve(self):
+            return _FakeSolution(x)
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", FakeSolver)
+    s = grasp_score(pts, nrm)
+    assert s.feasible == feasible
+    if feasible:
+        assert s.s_g == pytest.approx(0.0)

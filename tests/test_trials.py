@@ -209,3 +209,124 @@ def test_trials_with_a_task_force_score_that_task():
         assert r.feasible[i] == (ref is not None)
         if ref is not None:
             assert r.s_g[i] == pytest.approx(ref, abs=1e-5)
+
+
+class Recorder:
+    """A composer that moves every contact by a constant gradient and records what it sees."""
+
+    name = "recorder"
+
+    def __init__(self, gradient: float) -> None:
+        self.g = gradient
+        self.steps: list[int] = []
+        self.active: list[np.ndarray] = []
+        self.begun: int | None = None
+        self.ended: np.ndarray | None = None
+
+    def begin(self, n_trials, rng):
+        self.begun = n_trials
+
+    def gradient(self, state, rng):
+        self.steps.append(state.step)
+        self.active.append(state.active.copy())
+        return np.full(state.theta.shape, self.g)
+
+    def end(self, state, success):
+        self.ended = success.copy()
+
+
+def test_a_trial_that_never_converges_stops_after_300_steps():
+    """Section 3.6.2: "up to convergence, or for 300 control steps, whichever comes first"."""
+    rec = Recorder(0.01)  # moves 0.0025 rad a step: never converges
+    r = run_trials([paper_object("square")], np.zeros(3, int), rec, np.random.default_rng(0))
+    assert np.all(r.steps == 300) and not r.converged.any()
+    assert rec.steps == list(range(300)) and rec.begun == 3
+    np.testing.assert_array_equal(rec.ended, r.success)
+    assert r.states is None  # not recorded unless asked
+    moved = np.angle(np.exp(1j * (r.theta_final - r.theta_initial)))
+    np.testing.assert_allclose(moved, -300 * 0.25 * 0.01, atol=1e-9)
+
+
+def test_convergence_threshold_is_inclusive():
+    """ "has not moved more than 0.0005 radians": a step of exactly 0.0005 rad converges."""
+    assert CONVERGENCE_STEP == 0.0005
+    rec = Recorder(CONVERGENCE_STEP / GAIN)  # 0.25 * 0.002 == 0.0005 exactly in binary
+    r = run_trials([paper_object("square")], np.zeros(2, int), rec, np.random.default_rng(0))
+    assert r.converged.all() and np.all(r.steps == 1) and rec.steps == [0]
+    slower = run_trials(
+        [paper_object("square")],
+        np.zeros(2, int),
+        Recorder(CONVERGENCE_STEP / GAIN * 1.001),
+        np.random.default_rng(0),
+        max_steps=5,
+    )
+    assert not slower.converged.any() and np.all(slower.steps == 5)
+
+
+def test_recorded_states_start_at_the_initial_contacts():
+    poly = paper_object("pentagon")
+    rng = np.random.default_rng(6)
+    theta0 = rng.uniform(0.0, 2.0 * np.pi, (8, 4))
+    r = run_trials(
+        [poly], np.zeros(8, int), KnowledgeBased(), rng, theta_initial=theta0, record_states=True
+    )
+    assert r.states.shape == (8, 301, 2)
+    start = control_state(PolygonBatch.of([poly]), np.zeros(8, int), theta0, 0, np.ones(8, bool))
+    np.testing.assert_allclose(r.states[:, 0, 0], start.eps_fc)
+    np.testing.assert_allclose(r.states[:, 0, 1], start.eps_mc)
+    for i in range(8):  # a value for every step the trial ran, NaN after
+        assert np.isfinite(r.states[i, : r.steps[i] + 1]).all()
+        assert np.isnan(r.states[i, r.steps[i] + 1 :]).all()
+    short = run_trials(
+        [poly],
+        np.zeros(8, int),
+        KnowledgeBased(),
+        rng,
+        theta_initial=theta0,
+        max_steps=7,
+        record_states=True,
+    )
+    assert short.states.shape == (8, 8, 2)
+
+
+class WatchedKB(KnowledgeBased):
+    """Knowledge-based composition that records which trials each step reports active."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.active: list[np.ndarray] = []
+
+    def gradient(self, state, rng):
+        self.active.append(state.active.copy())
+        return super().gradient(state, rng)
+
+
+def test_finished_trials_stop_moving_while_others_go_on():
+    r = run_trials(
+        [paper_object("square")], np.zeros(4, int), Recorder(0.0), np.random.default_rng(0)
+    )
+    assert np.all(r.steps == 1) and r.converged.all()
+    np.testing.assert_allclose(np.cos(r.theta_final - r.theta_initial), 1.0)
+    watched = WatchedKB()
+    kb = run_trials(
+        [paper_object("triangle"), paper_object("hexagon")],
+        [0, 1, 0, 1, 0, 1],
+        watched,
+        np.random.default_rng(2),
+    )
+    assert len(set(kb.steps)) > 1  # the trials end at different steps
+    active = np.array(watched.active)  # (steps run, trials)
+    assert active.shape == (kb.steps.max(), 6)
+    for i in range(6):
+        assert active[: kb.steps[i], i].all() and not active[kb.steps[i] :, i].any()
+    # a finished trial is not moved: run alone for exactly its steps it ends in the same place
+    i = int(np.argmin(kb.steps))
+    alone = run_trials(
+        [paper_object("triangle"), paper_object("hexagon")],
+        [i % 2],
+        KnowledgeBased(),
+        np.random.default_rng(0),
+        theta_initial=kb.theta_initial[i : i + 1],
+        max_steps=int(kb.steps[i]),
+    )
+    np.testing.assert_allclose(alone.theta_final[0], kb.theta_final[i], atol=1e-12)

@@ -139,3 +139,95 @@ def test_crossings_locate_a_pixel_integrated_step_exactly() -> None:
     # a rise below the contrast floor is refused
     e, ok = edges.crossings(grey * 0.05, d, np.zeros(3), np.array([0.5]), 12.0)
     assert not ok[0]
+
+
+def _profile(values: np.ndarray) -> np.ndarray:
+    """A one-profile (1, D, 3) colour array whose distance from black is ``values`` (D,)."""
+    return values[None, :, None] * np.array([0.6, 0.8, 0.0])
+
+
+def test_crossings_take_the_first_rise_not_a_stronger_one_beyond_the_search_window():
+    """A neighbour's edge 3 px outside (stronger than the face's) is beyond OUTSIDE_OFFSET (1.75 px
+    past the estimate): the face's own edge at 0.5 is found."""
+    d = edges.profile_offsets()
+    dist = np.interp(d, [-5, 0.0, 1.0, 3.0, 4.0, 9], [0, 0, 60, 60, 260, 260])
+    e, ok = edges.crossings(_profile(dist), d, np.zeros(3), np.array([0.5]), 12.0)
+    assert ok[0] and e[0] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_crossings_locate_a_blurred_edge_at_the_middle_of_its_ramp():
+    """A 3.5 px wide ramp of 13 grey levels (every slope below 1 level per sample) is one rise."""
+    d = edges.profile_offsets()
+    dist = np.interp(d, [-5, -1.5, 2.0, 9], [0, 0, 13, 13])
+    e, ok = edges.crossings(_profile(dist), d, np.zeros(3), np.array([0.5]), 12.0)
+    assert ok[0] and e[0] == pytest.approx(0.25, abs=1e-9)
+
+
+def test_crossings_refuse_a_profile_that_does_not_start_on_the_face():
+    """The inner end of the profile must look like the face (within 0.3 of the rise): a narrow
+    face whose far side shows at the profile's first sample is refused."""
+    d = edges.profile_offsets()
+    step = np.interp(d, [-5, 0.0, 1.0, 9], [0, 0, 60, 60])
+    for first, accepted in ((0.25 * 60, True), (0.45 * 60, False)):
+        dist = step.copy()
+        dist[0] = first
+        _, ok = edges.crossings(_profile(dist), d, np.zeros(3), np.array([0.5]), 12.0)
+        assert ok[0] == accepted, first
+
+
+@pytest.mark.parametrize(("contrast", "found"), [(20.0, True), (9.0, False)])
+def test_faces_need_a_colour_contrast_of_12_grey_levels(contrast, found):
+    """Without noise, an edge of 20 grey levels is found by colour; one of 9 falls back to the mask
+    (MIN_CONTRAST = 12)."""
+    verts = pentagon(np.random.default_rng(5))
+    _, cov = render(verts)
+    img = 100.0 + contrast * cov[..., None] * np.array([1.0, 0.0, 0.0])  # colour distance
+    mask = (cov > 0.5).astype(np.uint8)
+    out = edges.outline(mask, img.astype(np.float32), np.zeros(mask.shape, bool), 0.0)
+    assert out.refined.mean() > 0.95 if found else not out.refined.any()
+
+
+def test_a_narrow_face_still_gets_colour_edges():
+    """A strip 7 px wide: the profiles reach only PROFILE_INSIDE = 3 px into the face, so they do
+    not run into its far side."""
+    verts = np.array([[10.0, 20.0], [70.0, 20.0], [70.0, 27.0], [10.0, 27.0]])
+    img, cov = render(verts, h=48, w=80)
+    mask = (cov > 0.5).astype(np.uint8)
+    out = edges.outline(mask, img, np.zeros(mask.shape, bool), 0.0)
+    signed, vertex = signed_edge_distance(out.point, verts)
+    long_sides = out.refined & (vertex > 3.0)
+    assert long_sides.sum() > 80
+    assert np.abs(signed[long_sides]).max() < 0.2
+
+
+def test_face_colour_comes_from_the_interior_not_the_rim():
+    """The mask may reach past the top face (side-face pixels): the colour is the median of the
+    mask eroded by 2 px. A 10 x 10 mask whose 2 px rim is another colour has a face-coloured
+    6 x 6 core (36 of 100 pixels)."""
+    img = np.full((20, 20, 3), 50.0, np.float32)
+    img[7:13, 7:13] = FACE
+    mask = np.zeros((20, 20), np.uint8)
+    mask[5:15, 5:15] = 1
+    np.testing.assert_allclose(edges.face_colour(img, mask), FACE)
+    # a mask too small to erode: the median of the mask itself, never of pixels outside it
+    tiny = np.zeros((20, 20), np.uint8)
+    tiny[9:11, 9:11] = 1
+    np.testing.assert_allclose(edges.face_colour(img, tiny), FACE)
+    # no interior to measure noise on: noise 0, so MIN_CONTRAST decides
+    assert edges.noise_sigma(img, tiny) == 0.0
+
+
+def test_a_face_cut_by_the_image_border():
+    """Outline pixels on the border are kept; the caller marks them untrusted through ``bad``."""
+    verts = np.array([[40.0, 10.0], [95.0, 10.0], [95.0, 60.0], [40.0, 60.0]])  # past the right
+    img, cov = render(verts, h=50, w=80)  # and the bottom edge
+    mask = (cov > 0.5).astype(np.uint8)
+    bad = np.zeros(mask.shape, bool)
+    bad[:, -1] = bad[-1, :] = True
+    out = edges.outline(mask, img, bad, 0.0)
+    on_border = (out.pixel[:, 0] == 79) | (out.pixel[:, 1] == 49)
+    assert on_border.sum() > 20
+    np.testing.assert_array_equal(out.trusted, ~on_border)
+    signed, vertex = signed_edge_distance(out.point, verts)
+    seen = out.refined & out.trusted & (vertex > 3.0)
+    assert seen.sum() > 50 and np.abs(signed[seen]).max() < 0.2

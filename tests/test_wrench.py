@@ -11,6 +11,7 @@ from controllers.grasp.wrench import (
     fc_gradient,
     fc_gradient_convex,
     fc_minimizer,
+    fc_wrenches,
     mc_gradient,
     mc_gradient_convex,
     mc_minimizer,
@@ -267,3 +268,19 @@ def test_mc_moment_is_the_moment_of_the_inward_normal_force():
     p, force = f.point[0], -f.normal[0]
     np.testing.assert_allclose(w[:, :2], force, atol=1e-12)
     np.testing.assert_allclose(w[:, 2], p[:, 0] * force[:, 1] - p[:, 1] * force[:, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize("task", [None, (0.2, -0.1, 0.0)], ids=["null", "force_task"])
+def test_sufficiency_eq2_with_fc_wrenches_is_eps_fc(task):
+    """Eq. 5 is Eq. 2 with the FC model w = (-cos theta, -sin theta, 0)."""
+    theta = np.random.default_rng(7).uniform(-np.pi, np.pi, (50, 4))
+    w = fc_wrenches(theta)
+    assert w.shape == (50, 4, 3)
+    np.testing.assert_allclose(w[..., 0] ** 2 + w[..., 1] ** 2, 1.0)
+    np.testing.assert_allclose(np.arctan2(-w[..., 1], -w[..., 0]), theta, atol=1e-12)
+    np.testing.assert_allclose(sufficiency(w, task), eps_fc(theta, task))
+
+
+def test_task_with_a_nan_component_is_refused():
+    with pytest.raises(ValueError, match="finite"):
+        eps_fc(np.zeros((1, 2)), task=[np.nan, 0.0, 0.0])
