@@ -190,3 +190,17 @@ def test_diameter_area_and_scaling():
     for bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(PolygonError, match="positive"):
             tri.scaled(bad)
+
+
+def test_theta_of_inverts_point_at():
+    p = paper_object("irregular_hexagon")
+    theta = np.random.default_rng(2).uniform(-np.pi, np.pi, (3, 40))
+    np.testing.assert_allclose(p.theta_of(p.point_at(theta)), theta, atol=1e-12)
+    assert p.theta_of((0.0, 1.0)) == pytest.approx(np.pi / 2)
+
+
+def test_the_first_reflex_vertex_is_named_after_collinear_ones():
+    # vertex 1 is collinear (turn 0, allowed), vertex 4 is the dent
+    v = [(0, 0), (1, 0), (2, 0), (2, 2), (1, 1.8), (0, 2)]
+    with pytest.raises(PolygonError, match=r"not convex at vertex 4 \(1, 1.8\)"):
+        Polygon.from_vertices(v)

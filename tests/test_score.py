@@ -34,6 +34,9 @@ def test_same_face_contacts_are_infeasible_not_an_error():
     s = grasp_score([(1, 0.5), (1, -0.5)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["+x"]])
     assert not s.feasible and not s.success
     assert s.s_g == float("inf")
+    assert s.status == "PrimalInfeasible"  # clarabel's status, without the enum's name
+    ok = grasp_score([(1, 0), (-1, 0)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]])
+    assert ok.status == "Solved"
 
 
 def test_three_against_one_is_unbalanced():
@@ -185,8 +188,11 @@ class _FakeSolution:
     [
         ([1.0, 1.0, 0.0, 0.0, 0.0, 0.0], True),  # N = (1, 1): balances the antipodal pair
         ([1.0, 1.2, 0.0, 0.0, 0.0, 0.0], False),  # net force 0.1 != 0
+        ([1.2, 1.0, 0.0, 0.0, 0.0, 0.0], False),  # net force -0.1 != 0
         ([1.0, 1.0, 0.0, 3e-6, 0.0, 3e-6], False),  # net force 1.5e-6 (tolerance 1e-6)
         ([0.5, 0.5, 0.0, 0.0, 0.0, 0.0], False),  # balanced, but N < 1
+        ([1 - 5e-6, 1 - 5e-6, 0.0, 0.0, 0.0, 0.0], False),  # N < 1 beyond the 1e-6 tolerance
+        ([1 - 5e-7, 1 - 5e-7, 0.0, 0.0, 0.0, 0.0], True),  # within it
         ([1.0, 1.0, 0.5, 0.5] + [0.0] * 8, False),  # four contacts, balanced, two N < 1
         ([1.0, 1.0, 1.0, 1.0] + [0.0] * 8, True),
     ],
@@ -208,4 +214,4 @@ def test_a_solver_answer_that_breaks_the_constraints_is_not_trusted(monkeypatch,
     s = grasp_score(pts, nrm)
     assert s.feasible == feasible
     if feasible:
-        assert s.s_g == pytest.approx(0.0)
+        assert s.s_g == pytest.approx(0.0, abs=1e-6)

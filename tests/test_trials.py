@@ -243,6 +243,7 @@ def test_a_trial_that_never_converges_stops_after_300_steps():
     assert rec.steps == list(range(300)) and rec.begun == 3
     np.testing.assert_array_equal(rec.ended, r.success)
     assert r.states is None  # not recorded unless asked
+    assert "states" not in repr(r)  # nor printed when they are
     moved = np.angle(np.exp(1j * (r.theta_final - r.theta_initial)))
     np.testing.assert_allclose(moved, -300 * 0.25 * 0.01, atol=1e-9)
 

@@ -231,3 +231,71 @@ def test_a_face_cut_by_the_image_border():
     signed, vertex = signed_edge_distance(out.point, verts)
     seen = out.refined & out.trusted & (vertex > 3.0)
     assert seen.sum() > 50 and np.abs(signed[seen]).max() < 0.2
+
+
+def test_a_brighter_neighbour_two_pixels_away_does_not_pull_the_edge():
+    """Blocks may stand a few pixels apart: the face's edge is searched only up to 1.75 px past
+    the mask's edge, so a brighter neighbour 2 px beyond it moves the edge by 0.06 px (0.3 px if
+    the search started half a pixel further out)."""
+    face = np.array([[10.0, 10.0], [40.0, 10.0], [40.0, 40.0], [10.0, 40.0]])
+    neighbour = np.array([[42.0, 5.0], [60.0, 5.0], [60.0, 45.0], [42.0, 45.0]])
+    cf = coverage(face, 50, 64)[..., None]
+    cn = coverage(neighbour, 50, 64)[..., None]
+    img = cf * np.array(FACE) + cn * np.array([250.0, 250.0, 250.0]) + (1 - cf - cn) * TABLE
+    mask = (cf[..., 0] > 0.5).astype(np.uint8)
+    out = edges.outline(mask, img.astype(np.float32), np.zeros(mask.shape, bool), 0.0)
+    signed, vertex = signed_edge_distance(out.point, face)
+    right = (out.pixel[:, 0] >= 39) & (vertex > 3.0)
+    assert right.sum() > 20 and out.refined[right].all()
+    assert np.abs(signed[right]).max() < 0.15
+
+
+def test_crossings_ignore_shading_that_keeps_rising_past_the_edge():
+    """Only slopes above RISE_FRACTION of the steepest belong to the edge: a slow drift after the
+    step (shading, 0.2 grey levels per sample) does not shift it."""
+    d = edges.profile_offsets()
+    dist = np.interp(d, [-5, 0.0, 1.0, 2.25, 9], [0, 0, 60, 61, 61])
+    e, ok = edges.crossings(_profile(dist), d, np.zeros(3), np.array([0.5]), 12.0)
+    assert ok[0] and e[0] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_noise_is_measured_on_the_face_only():
+    """A flat face on a very noisy table: the face's own noise (sigma 2) is what counts."""
+    rng = np.random.default_rng(8)
+    verts = pentagon(rng)
+    img, cov = render(verts)
+    table_noise = rng.normal(0.0, 40.0, img.shape) * (cov[..., None] < 0.01)
+    face_noise = rng.normal(0.0, 2.0, img.shape)
+    noisy = (img + table_noise + face_noise).astype(np.float32)
+    mask = (cov > 0.5).astype(np.uint8)
+    assert edges.noise_sigma(noisy, mask) == pytest.approx(2.0, rel=0.15)
+
+
+@pytest.mark.parametrize("margin", [0.0, 2.0])
+def test_a_face_just_inside_the_image_border(margin):
+    """Outline pixels whose orientation probe (2 px out) lands on the first or last row or
+    column, or past it, are handled: margin 0 puts the face's last pixels 2 px from the right
+    and bottom ends, margin 2 its first pixels 2 px from the left and top ends."""
+    h, w = 40, 50
+    verts = np.array([[margin, margin], [w - 1 - margin, margin], [w - 1 - margin, h - 1 - margin]])
+    verts = np.vstack([verts, [margin, h - 1 - margin]]) - 0.5
+    img, cov = render(verts, h=h, w=w)
+    mask = (cov > 0.5).astype(np.uint8)
+    out = edges.outline(mask, img, np.zeros(mask.shape, bool), 0.0)
+    signed, vertex = signed_edge_distance(out.point, verts)
+    on_edge = out.refined & (vertex > 3.0)
+    assert on_edge.sum() > 60 and np.abs(signed[on_edge]).max() < 0.2
+    # outward normals, also along the border
+    assert np.all(np.einsum("ij,ij->i", out.normal, out.pixel - verts.mean(axis=0)) > 0)
+
+
+def test_a_face_of_a_few_pixels_still_has_an_outline():
+    """A 3 x 3 pixel face: an 8-point outline with unit normals (the tangent span shrinks)."""
+    mask = np.zeros((12, 12), np.uint8)
+    mask[4:7, 4:7] = 1
+    img = np.where(mask[..., None] > 0, np.float32(FACE), np.float32(TABLE)).astype(np.float32)
+    out = edges.outline(mask, img, np.zeros(mask.shape, bool), 0.0)
+    assert len(out.pixel) == 8
+    np.testing.assert_allclose(np.linalg.norm(out.normal, axis=1), 1.0)
+    outward = np.einsum("ij,ij->i", out.normal, out.pixel - [5.0, 5.0])
+    assert np.all(outward > 0)

@@ -284,3 +284,15 @@ def test_sufficiency_eq2_with_fc_wrenches_is_eps_fc(task):
 def test_task_with_a_nan_component_is_refused():
     with pytest.raises(ValueError, match="finite"):
         eps_fc(np.zeros((1, 2)), task=[np.nan, 0.0, 0.0])
+
+
+def test_a_task_per_grasp_is_applied_row_by_row():
+    """A task of shape (T, 3) gives each grasp its own task wrench."""
+    theta = np.random.default_rng(9).uniform(-np.pi, np.pi, (5, 3))
+    tasks = np.random.default_rng(10).uniform(-0.3, 0.3, (5, 3))
+    batch = PolygonBatch.of([paper_object("pentagon")])
+    frames = batch.locate(np.zeros(5, dtype=int), theta)
+    for i in range(5):
+        one = batch.locate(np.zeros(1, dtype=int), theta[i : i + 1])
+        assert eps_fc(theta, tasks)[i] == pytest.approx(eps_fc(theta[i : i + 1], tasks[i])[0])
+        assert eps_mc(frames, tasks)[i] == pytest.approx(eps_mc(one, tasks[i])[0])

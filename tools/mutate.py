@@ -1,7 +1,7 @@
 """Mutation testing of the grasp core, the S_G LP, vision edges and scene geometry (issue 14).
 
-    python -m tools.mutate                     # the seeded sample, 2 jobs, about 10 minutes
-    python -m tools.mutate --all               # every mutant (slower)
+    python -m tools.mutate                     # every mutant, 2 jobs
+    python -m tools.mutate --fraction 0.3      # a seeded 30 % sample
     python -m tools.mutate --module score --list
 
 Each mutant is one small change to one module's source: an arithmetic or comparison operator
@@ -13,11 +13,12 @@ and imports are left alone) and written into a private copy of the repository, o
 per job. The test files that cover the module run against the mutant with ``pytest -x``: a
 failure (or a crash or time-out) kills the mutant; a mutant that passes every test survives.
 
-The mutants run are a seeded sample (``--seed``, ``--fraction``) so that a run fits in
-minutes; the same seed gives the same mutants. Survivors known to be equivalent (no test can
-tell them from the original) are listed in ``EQUIVALENT`` with the reason, and reported apart.
-Exit status 0 when the survival rate is at most ``--max-survival`` (default 10 %), 1 otherwise,
-2 for bad arguments or when the unmutated tests fail.
+Every mutant runs by default; ``--fraction`` takes a seeded sample for a quicker look (the same
+seed gives the same mutants). Mutants known to be equivalent (no test can tell them from the
+original) are listed with the reason in :mod:`tools.equivalent`: they count as survivors but
+are not run again unless ``--check-equivalent`` is given (which reports any that a test now
+kills). Exit status 0 when the share of surviving mutants is at most ``--max-survival``
+(default 10 %), 1 otherwise, 2 for bad arguments or when the unmutated tests fail.
 """
 
 from __future__ import annotations
@@ -37,6 +38,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
+from tools.equivalent import reason_for
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -79,12 +82,8 @@ TARGETS: tuple[Target, ...] = (
     Target("geometry", "hand_sim/geometry.py", ("tests/test_scene.py",)),
 )
 
-#: Survivors that no test can tell from the original, keyed by (module path, the mutated line
-#: stripped, the mutation as printed): the reason. Kept in step with docs/mutation.md.
-EQUIVALENT: dict[tuple[str, str, str], str] = {}
-
-#: Default share of each module's mutants that a run samples.
-DEFAULT_FRACTION = 0.5
+#: Default share of each module's mutants that a run takes.
+DEFAULT_FRACTION = 1.0
 #: A mutant's tests may take this many times the unmutated run (plus a floor) before it counts
 #: as killed by a time-out (an endless loop).
 TIMEOUT_FACTOR = 4.0
@@ -306,7 +305,7 @@ class Outcome:
     status: str  #: "killed", "survived", "timeout" (counts as killed) or "error"
     detail: str  #: the first failing test, or the reason
     seconds: float
-    equivalent: str = ""  #: the reason, for a survivor listed in EQUIVALENT
+    equivalent: str = ""  #: why it is equivalent, when tools.equivalent lists it
 
 
 def make_copy(dest: Path) -> Path:
@@ -349,10 +348,6 @@ def run_tests(copy: Path, tests: Sequence[str], timeout: float) -> tuple[str, st
     return "error", f"pytest exit {proc.returncode}: {proc.stdout[-300:]}", seconds
 
 
-def _line_of(source: str, line: int) -> str:
-    return source.splitlines()[line - 1].strip()
-
-
 def evaluate(
     mutant: Mutant, copy: Path, tests: Sequence[str], original: str, timeout: float
 ) -> Outcome:
@@ -368,15 +363,13 @@ def evaluate(
         status, detail, seconds = run_tests(copy, tests, timeout)
     finally:
         target.write_text(original)
-    reason = ""
-    if status == "survived":
-        key = (
-            mutant.path,
-            _line_of(original, mutant.line),
-            f"{mutant.original} -> {mutant.replacement}",
-        )
-        reason = EQUIVALENT.get(key, "")
-    return Outcome(mutant, status, detail, seconds, reason)
+    return Outcome(mutant, status, detail, seconds, equivalent_reason(mutant, original))
+
+
+def equivalent_reason(mutant: Mutant, source: str) -> str:
+    """Why ``mutant`` of ``source`` is equivalent, or "" when it is not listed."""
+    line = source.splitlines()[mutant.line - 1]
+    return reason_for(mutant.path, line, mutant.col, mutant.original, mutant.replacement)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -385,9 +378,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--module", action="append", choices=names, help="only these (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="sample seed (default 0)")
     p.add_argument("--fraction", type=float, default=DEFAULT_FRACTION, help="share sampled")
-    p.add_argument("--all", action="store_true", help="every mutant (same as --fraction 1)")
+    p.add_argument(
+        "--check-equivalent", action="store_true", help="run the listed equivalent mutants too"
+    )
     p.add_argument("--jobs", type=int, default=2, help="parallel workers (default 2)")
     p.add_argument("--list", action="store_true", help="list the mutants, run nothing")
+    p.add_argument("--match", help="only mutants whose label contains this text")
+    p.add_argument("--rerun", type=Path, help="only the survivors of an earlier --json file")
     p.add_argument("--json", type=Path, help="write every outcome to this file")
     p.add_argument("--max-survival", type=float, default=0.10, help="exit 1 above (default 0.1)")
     a = p.parse_args(argv)
@@ -398,18 +395,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"tools.mutate: --jobs must be >= 1, got {a.jobs}", file=sys.stderr)
         return 2
     targets = [t for t in TARGETS if not a.module or t.name in a.module]
-    fraction = 1.0 if a.all else a.fraction
+    fraction = 1.0 if a.rerun else a.fraction
+    wanted: set[str] | None = None
+    if a.rerun is not None:
+        try:
+            earlier = json.loads(a.rerun.read_text())
+        except (OSError, ValueError) as e:
+            print(f"tools.mutate: cannot read --rerun {a.rerun}: {e}", file=sys.stderr)
+            return 2
+        wanted = {Mutant(**o["mutant"]).label for o in earlier if o["status"] == "survived"}
     plan: list[tuple[Target, Mutant]] = []
     for i, t in enumerate(targets):
         found = find_mutants(t.path)
-        chosen = sample(found, fraction, a.seed + 1000 * i)
-        print(f"{t.name:12} {t.path:36} {len(found):4d} mutants, {len(chosen):4d} sampled")
+        chosen = [
+            m
+            for m in sample(found, fraction, a.seed + 1000 * i)
+            if (wanted is None or m.label in wanted) and (not a.match or a.match in m.label)
+        ]
+        print(f"{t.name:12} {t.path:36} {len(found):4d} mutants, {len(chosen):4d} chosen")
         plan += [(t, m) for m in chosen]
     if a.list:
         for _, m in plan:
             print(m.label)
         return 0
-    return _run(plan, targets, a.jobs, a.json, a.max_survival)
+    return _run(plan, targets, a.jobs, a.json, a.max_survival, a.check_equivalent)
 
 
 def _run(
@@ -418,9 +427,18 @@ def _run(
     jobs: int,
     json_path: Path | None,
     max_survival: float,
+    check_equivalent: bool,
 ) -> int:
     t_start = time.perf_counter()
     sources = {t.path: (REPO / t.path).read_text() for t in targets}
+    listed: list[Outcome] = []
+    if not check_equivalent:  # known survivors: counted, not run again
+        for t, m in plan:
+            reason = equivalent_reason(m, sources[t.path])
+            if reason:
+                listed.append(Outcome(m, "survived", "listed equivalent, not run", 0.0, reason))
+        skip = {id(o.mutant) for o in listed}
+        plan = [(t, m) for t, m in plan if id(m) not in skip]
     with tempfile.TemporaryDirectory(prefix="graspsim-mutate-") as tmp:
         copies = [make_copy(Path(tmp) / f"w{k}") for k in range(jobs)]
         baseline: dict[str, float] = {}
@@ -436,7 +454,8 @@ def _run(
             baseline[t.path] = seconds
             print(f"baseline {t.name}: tests pass in {seconds:.1f} s")
         free = list(copies)
-        outcomes: list[Outcome] = []
+        outcomes: list[Outcome] = list(listed)
+        print(f"{len(listed)} listed equivalent mutants counted as survivors, not run")
 
         def one(item: tuple[Target, Mutant]) -> Outcome:
             t, m = item
@@ -451,6 +470,8 @@ def _run(
             for k, out in enumerate(pool.map(one, plan), 1):
                 outcomes.append(out)
                 tag = out.status.upper() + (" (equivalent)" if out.equivalent else "")
+                if out.equivalent and out.status != "survived":
+                    tag = out.status.upper() + " (listed equivalent: remove it)"
                 print(f"[{k:3d}/{len(plan)}] {tag:22} {out.mutant.label}  {out.detail}", flush=True)
     print(_summary(outcomes, targets, time.perf_counter() - t_start))
     if json_path is not None:
