@@ -65,7 +65,9 @@ TARGETS: tuple[Target, ...] = (
         ("tests/test_composition.py", "tests/test_trials.py"),
     ),
     Target(
-        "trials", "controllers/grasp/trials.py", ("tests/test_trials.py", "tests/test_wrench.py")
+        "trials",
+        "controllers/grasp/trials.py",
+        ("tests/test_trials.py", "tests/test_wrench.py", "tests/test_preimaging.py"),
     ),
     Target(
         "polygon",
@@ -75,6 +77,7 @@ TARGETS: tuple[Target, ...] = (
             "tests/test_wrench.py",
             "tests/test_score.py",
             "tests/test_trials.py",
+            "tests/test_parser_fuzz.py",
         ),
     ),
     Target("score", "controllers/grasp/score.py", ("tests/test_score.py", "tests/test_trials.py")),
