@@ -5,7 +5,7 @@ import pytest
 
 from controllers.grasp import PAPER_OBJECTS, Polygon, PolygonError, UnknownNameError, paper_object
 from controllers.grasp.objects import random_convex_polygon, regular_polygon
-from controllers.grasp.polygon import parse_points
+from controllers.grasp.polygon import centroid_of, parse_points
 
 
 def ray_hit(vertices: np.ndarray, theta: float) -> np.ndarray:
@@ -122,3 +122,85 @@ def test_parse_points():
     assert parse_points("0,0; 1,0;1,1").shape == (3, 2)
     with pytest.raises(PolygonError, match="x,y"):
         parse_points("0,0;1")
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_non_convex_vertex_is_named_in_the_callers_order(clockwise):
+    ccw = [(0, 0), (2, 0), (2, 2), (1, 1.8), (0, 2)]  # the dent is vertex 3
+    given = ccw[::-1] if clockwise else ccw
+    i = given.index((1, 1.8))
+    with pytest.raises(PolygonError, match=rf"not convex at vertex {i} \(1, 1.8\)"):
+        Polygon.from_vertices(given)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_tolerances_are_relative_to_the_polygon_size(scale):
+    """RELATIVE_TOLERANCE (1e-9) and MIN_RELATIVE_AREA (1e-6) scale with the polygon: the same
+    shapes are accepted or refused in millimetres, metres or kilometres."""
+    square = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], float)
+
+    def with_extra(gap):  # an extra vertex on the bottom edge, ``gap`` before the corner
+        return np.insert(square, 1, (1.0 - gap, 0.0), axis=0) * scale
+
+    assert Polygon.from_vertices(with_extra(3e-9)).n_edges == 5  # collinear vertices are fine
+    assert Polygon.from_vertices(with_extra(0.5)).n_edges == 5
+    with pytest.raises(PolygonError, match="repeats vertex 1"):
+        Polygon.from_vertices(with_extra(3e-10))
+
+    def thin(height):  # area height / 2 of a unit-size triangle
+        return np.array([(0, 0), (1, 0), (0.5, height)]) * scale
+
+    assert Polygon.from_vertices(thin(6e-6)).area == pytest.approx(3e-6 * scale**2)
+    with pytest.raises(PolygonError, match="collinear"):
+        Polygon.from_vertices(thin(1e-6))
+    # a dent of relative depth 1e-6 is not convex, whatever the scale
+    dented = np.array([(0, 0), (0.5, 1e-6), (1, 0), (1, 1), (0, 1)]) * scale
+    with pytest.raises(PolygonError, match="not convex at vertex 1"):
+        Polygon.from_vertices(dented)
+
+
+def test_degenerate_inputs_name_the_problem():
+    with pytest.raises(PolygonError, match="all vertices coincide"):
+        Polygon.from_vertices([(1, 2), (1, 2), (1, 2)])
+    with pytest.raises(PolygonError, match="collinear"):
+        Polygon.from_vertices([(0, 0), (0, 1), (0, 3)])  # on a vertical line
+    with pytest.raises(PolygonError, match=r"\(x, y\) pairs"):
+        Polygon.from_vertices([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+    # the centroid of a degenerate outline is the mean of its points
+    np.testing.assert_allclose(centroid_of([(0, 0), (2, 0), (4, 0)]), [2.0, 0.0])
+    np.testing.assert_allclose(centroid_of([(0, 0), (3, 0), (0, 3)]), [1.0, 1.0])
+
+
+def test_polygon_is_immutable_and_prints_its_vertices():
+    p = paper_object("square")
+    for a in (p.vertices, p.normal_angle, p.offset):
+        with pytest.raises(ValueError, match="read-only"):
+            a[0] = 1.0
+    assert "normal_angle" not in repr(p) and "offset" not in repr(p) and "vertices" in repr(p)
+
+
+def test_diameter_area_and_scaling():
+    rect = Polygon.from_vertices([(0, 0), (5, 0), (5, 2.5), (0, 2.5)])
+    assert rect.diameter == pytest.approx(np.hypot(5.0, 2.5))
+    assert rect.area == pytest.approx(12.5)
+    tri = Polygon.from_vertices([(0, 0), (4, 0), (0, 3)])
+    assert tri.diameter == pytest.approx(5.0)
+    big = tri.scaled(2.0)
+    assert big.diameter == pytest.approx(10.0) and big.area == pytest.approx(24.0)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(PolygonError, match="positive"):
+            tri.scaled(bad)
+
+
+def test_theta_of_inverts_point_at():
+    p = paper_object("irregular_hexagon")
+    theta = np.random.default_rng(2).uniform(-np.pi, np.pi, (3, 40))
+    np.testing.assert_allclose(p.theta_of(p.point_at(theta)), theta, atol=1e-12)
+    assert p.theta_of((0.0, 1.0)) == pytest.approx(np.pi / 2)
+
+
+def test_the_first_reflex_vertex_is_named_after_collinear_ones():
+    # vertex 1 is collinear (turn 0, allowed), vertex 4 is the dent
+    v = [(0, 0), (1, 0), (2, 0), (2, 2), (1, 1.8), (0, 2)]
+    with pytest.raises(PolygonError, match=r"not convex at vertex 4 \(1, 1.8\)"):
+        Polygon.from_vertices(v)

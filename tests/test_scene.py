@@ -6,11 +6,20 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
+from scipy.spatial import ConvexHull
 
 from controllers.grasp import PAPER_OBJECTS, paper_object
-from hand_sim.geometry import convex_polygon_distance, place_polygon
+from hand_sim.geometry import (
+    convex_polygon_distance,
+    convex_polygons_intersect,
+    inside_rectangle,
+    place_polygon,
+    point_in_convex_polygon,
+    rotation_2d,
+)
 from hand_sim.random_scene import load_generator_config
 from hand_sim.scene import MIN_BLOCK_GAP, SceneError, load_scene, scene_names
 
@@ -210,23 +219,94 @@ def test_seed_only_for_random() -> None:
         load_scene("clutter3", seed=1)
 
 
+def opencv_overlap_area(a: np.ndarray, b: np.ndarray) -> float:
+    """Area (mm^2) of the intersection of two convex polygons given in metres, by OpenCV
+    (independent of the SAT). In millimetres: OpenCV drops areas below an absolute epsilon."""
+    mm = 1000.0
+    area, _ = cv2.intersectConvexConvex((mm * a).astype(np.float32), (mm * b).astype(np.float32))
+    return float(area)
+
+
 def test_convex_polygon_distance_matches_sampling() -> None:
     rng = np.random.default_rng(0)
     square = paper_object("square").vertices
     tri = paper_object("triangle").vertices
+    n_overlap = 0
     for _ in range(20):
         a = place_polygon(square, rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi))
         b = place_polygon(tri, rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi))
         d = convex_polygon_distance(a, b)
         if d > 0:
             assert d == pytest.approx(sampled_gap(a, b), abs=2e-4)
-        else:  # overlapping: some vertex of one lies inside the other, or edges cross
-            assert sampled_gap(a, b) < 2e-4 or d == 0.0
+            assert opencv_overlap_area(a, b) == 0.0
+        else:  # reported as overlapping: OpenCV finds a common area
+            n_overlap += 1
+            assert opencv_overlap_area(a, b) > 0.0
+    assert 3 <= n_overlap <= 17  # both branches ran
     unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     assert convex_polygon_distance(unit, unit + np.array([3.0, 0.0])) == pytest.approx(2.0)
     diagonal = convex_polygon_distance(unit, unit + np.array([2.0, 2.0]))
     assert diagonal == pytest.approx(math.sqrt(2.0))
     assert convex_polygon_distance(unit, unit + np.array([0.5, 0.5])) == 0.0
+
+
+def test_separating_axis_of_the_second_polygon_is_found() -> None:
+    """A diamond 0.1 to the left of a box: no edge normal of the diamond separates them (its
+    projections overlap the box's on both diagonals), only the box's x axis does."""
+    diamond = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    box = np.array([[1.1, -0.5], [2.1, -0.5], [2.1, 0.5], [1.1, 0.5]])
+    assert not convex_polygons_intersect(diamond, box)
+    assert not convex_polygons_intersect(box, diamond)
+    assert convex_polygon_distance(diamond, box) == pytest.approx(0.1)
+    assert convex_polygon_distance(box, diamond) == pytest.approx(0.1)
+    assert convex_polygons_intersect(diamond, box - [0.2, 0.0])
+    assert convex_polygons_intersect(diamond, box - [0.1, 0.0])  # touching counts
+
+
+def test_overlap_agrees_with_opencv_on_random_pairs() -> None:
+    """Random convex polygons of different sizes and shapes, near each other: the SAT verdict is
+    OpenCV's (pairs within float32 noise of touching are skipped)."""
+    rng = np.random.default_rng(1)
+
+    def hull() -> np.ndarray:  # 3 to 8 vertices, up to 6 cm across, random aspect
+        pts = rng.uniform(-0.03, 0.03, (int(rng.integers(3, 12)), 2)) * [1.0, rng.uniform(0.2, 1)]
+        return place_polygon(pts[ConvexHull(pts).vertices], rng.uniform(-0.03, 0.03, 2), 0.0)
+
+    verdicts = []
+    for _ in range(400):
+        a, b = hull(), hull()
+        gap, area = convex_polygon_distance(a, b), opencv_overlap_area(a, b)
+        if 0.0 < gap < 1e-4 or 0.0 < area < 1e-2:  # within float32 noise of touching
+            continue
+        overlap = area > 0.0
+        assert convex_polygons_intersect(a, b) == overlap
+        assert (gap == 0.0) == overlap
+        verdicts.append(overlap)
+    assert len(verdicts) > 380 and 50 < sum(verdicts) < len(verdicts) - 50
+
+
+def test_point_in_polygon_and_rectangle_containment() -> None:
+    tri = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    assert point_in_convex_polygon((0.5, 0.5), tri)
+    assert point_in_convex_polygon((1.0, 1.0), tri)  # on the edge
+    assert not point_in_convex_polygon((1.01, 1.01), tri)
+    assert not point_in_convex_polygon((-0.01, 0.5), tri)
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert inside_rectangle(square, (0.5, 0.5), (1.0, 1.0))
+    assert not inside_rectangle(square, (0.5, 0.5), (1.0, 1.0), margin=0.01)
+    assert inside_rectangle(square, (0.5, 0.5), (1.04, 1.04), margin=0.01)
+    for shift in ((0.0, 0.03), (-0.03, 0.0)):  # out at the top, out at the left
+        moved = square + np.array(shift)
+        assert not inside_rectangle(moved, (0.5, 0.5), (1.04, 1.04), margin=0.01)
+    assert inside_rectangle((-0.4, 0.3), (0.0, 0.0), (0.9, 0.9))
+    assert not inside_rectangle((-0.46, 0.0), (0.0, 0.0), (0.9, 0.9))
+
+
+def test_place_polygon_rotates_then_translates() -> None:
+    v = np.array([[1.0, 0.0], [0.0, 2.0]])
+    np.testing.assert_allclose(place_polygon(v, (3.0, -1.0), np.pi / 2), [[3.0, 0.0], [1.0, -1.0]])
+    np.testing.assert_allclose(rotation_2d(0.3) @ rotation_2d(-0.3), np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(rotation_2d(np.pi / 2) @ [1.0, 0.0], [0.0, 1.0], atol=1e-15)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])

@@ -25,11 +25,12 @@ from vision import (
     Observation,
     VisionError,
     analyze,
+    bench,
     overhead_camera,
     select,
 )
 from vision.__main__ import main as vision_cli
-from vision.bench import add_noise, change_lighting, evaluate_scene
+from vision.bench import BlockResult, add_noise, change_lighting, evaluate_scene, summarize
 from vision.bench import main as bench_main
 from vision.metrics import model_error
 
@@ -38,6 +39,11 @@ WIDTH, HEIGHT = 1280, 960
 MAX_CENTROID_MM = 1.0
 MAX_VERTEX_MM = 3.0
 MAX_YAW_DEG = 1.0
+#: What the vision achieves here, with a margin: the acceptance above is ten times looser. Worst
+#: measured over the blocks of these tests: vertex 0.38 mm, area 1.3 % (a pixel is ~0.8 mm).
+#: Edge points half a pixel outward give vertex errors of 0.5-0.9 mm and areas 3.6-5.9 % too big.
+ACHIEVED_VERTEX_MM = 0.7
+ACHIEVED_AREA_PCT = 2.5
 #: An arm posture (waist, shoulder, elbow, wrist pitch, roll) that holds the hand over the
 #: table near (-0.1, 0.075), above the blocks' tops.
 ARM_OVER_TABLE = (0.0, -0.07, 2.29, -0.4, 0.0)
@@ -92,6 +98,9 @@ def _check_block(model: ObjectModel, block: BlockSpec) -> None:
     assert err.centroid_mm < MAX_CENTROID_MM, f"{block.name}: centroid off {err.centroid_mm:.2f} mm"
     assert err.vertex_mm.max() < MAX_VERTEX_MM, f"{block.name}: vertices off {err.vertex_mm} mm"
     assert err.yaw_deg < MAX_YAW_DEG, f"{block.name}: rotated {err.yaw_deg:.2f} deg"
+    assert err.vertex_mm.max() < ACHIEVED_VERTEX_MM, f"{block.name}: vertices {err.vertex_mm} mm"
+    area_pct = 100.0 * (model.polygon.area / block.polygon.area - 1.0)
+    assert abs(area_pct) < ACHIEVED_AREA_PCT, f"{block.name}: area off {area_pct:.2f} %"
 
 
 def test_camera_geometry_agrees_with_hand_sim() -> None:
@@ -129,15 +138,20 @@ def test_nine_paper_objects_are_modelled(
 ) -> None:
     scene, obs = nine_noisy if noisy else nine
     sel = analyze(obs, _positions(scene))
+    area_pct = []
     for block in scene.blocks:
         model = sel.select_name(block.name)
         assert model.name == block.name
         assert abs(model.height - 0.20) < 2e-3
         _check_block(model, block)
+        area_pct.append(100.0 * (model.polygon.area / block.polygon.area - 1.0))
         # the object frame: polygon vertices map back onto the world vertices
         np.testing.assert_allclose(
             model.to_world(model.polygon.vertices), model.world_vertices, atol=1e-9
         )
+    # no bias: the mean area error is -0.08 % (clean) and +0.15 % (noisy); +4.7 % if the edge
+    # points were half a pixel outward
+    assert abs(np.mean(area_pct)) < 0.75
 
 
 def test_select_by_pixel_name_and_world_point_agree(nine: tuple[Scene, Observation]) -> None:
@@ -283,8 +297,31 @@ def test_grasps_on_extracted_and_true_polygons_agree(nine: tuple[Scene, Observat
 def test_bench_runs_and_reports(capsys: pytest.CaptureFixture[str]) -> None:
     status = bench_main(["--trials", "2", "--shapes", "paper", "--width", "640", "--height", "480"])
     out = capsys.readouterr().out
-    assert status in (0, 1)
+    assert status == 0, out  # 0 only when both acceptance checks pass
     assert "edges ok" in out and "acceptance (noiseless)" in out and "acceptance (noisy)" in out
+    assert out.count(": PASS") == 2
+
+
+def _result(noisy: bool, n_edges: int, vertex_mm: float) -> BlockResult:
+    return BlockResult("paper", noisy, 4, n_edges, "", 0.1, np.full(4, vertex_mm), 0.1, 5.0)
+
+
+def test_bench_acceptance_fails_and_exits_1_when_a_target_is_missed(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = [_result(False, 4, 0.1) for _ in range(100)] + [_result(True, 4, 0.1)] * 100
+    text, ok = summarize(good)
+    assert ok and text.count(": PASS") == 2
+    # 2 % of the noiseless edge counts wrong (acceptance: >= 99 %); noisy still fine
+    wrong = [_result(False, 3, 0.1)] * 2 + good[2:]
+    text, ok = summarize(wrong)
+    assert not ok and "(noiseless)" in text and text.count(": FAIL") == 1
+    # vertex p95 above 3 mm with noise
+    far = good[:100] + [_result(True, 4, 3.5)] * 10 + good[110:]
+    assert not summarize(far)[1]
+    monkeypatch.setattr(bench, "run", lambda *args: wrong)
+    assert bench_main(["--trials", "2", "--shapes", "paper"]) == 1
+    assert "FAIL" in capsys.readouterr().out
 
 
 def test_bench_rejects_bad_trials(capsys: pytest.CaptureFixture[str]) -> None:

@@ -243,8 +243,9 @@ class Polygon:
         )
         if np.any(turn < -RELATIVE_TOLERANCE):
             i = int((np.flatnonzero(turn < -RELATIVE_TOLERANCE)[0] + 1) % len(v))
+            given = len(v) - 1 - i if area < 0.0 else i  # the index in the caller's order
             raise PolygonError(
-                f"polygon {name!r} is not convex at vertex {i} ({v[i, 0]:g}, {v[i, 1]:g}); "
+                f"polygon {name!r} is not convex at vertex {given} ({v[i, 0]:g}, {v[i, 1]:g}); "
                 "graspsim grasps convex polygons only (give the convex hull)"
             )
         heading = np.unwrap(np.arctan2(edges[:, 1], edges[:, 0]))
