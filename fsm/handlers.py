@@ -311,21 +311,23 @@ def coarse_reach(ep: Episode) -> Step:
     lengths = ", ".join(f"{a} {p.length:.2f} rad" for a, p in plan.candidates.items() if p.found)
     preshape = ""
     if plan.approach == "lateral":
-        preshape = "; " + _lateral_preshape(ep)
+        done = _lateral_preshape(ep)
+        preshape = "; " + (done or "no pinch pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
         f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way{preshape}",
     )
 
 
-def _lateral_search(ep: Episode, theta_of, *, reachable_only: bool):
+def _lateral_search(ep: Episode, theta_of, *, reachable_only: bool, skip: int = 0):
     """Search the palm poses of :func:`_lateral_poses`, the palm nearest the block first (the
     fingers on the far contacts keep room to squeeze: at the limit of their reach they push the
     block along instead), for one from which the hand reaches the contacts ``theta_of(pose)``
     (the hand IK starting from sampled finger postures) and that it approaches without
     collision (:func:`_approach_plan`); of several at one distance, the one with the lowest
     ``HandReach.load``. Without ``reachable_only``, when none reaches, the lowest load that
-    approaches. Returns (qpos, contacts, label, load, approach plan) or None."""
+    approaches. ``skip`` passes over that many acceptable poses first (a regrasp tries the next).
+    Returns (qpos, contacts, label, load, approach plan) or None."""
     world = ep.world
     hand_adr = HandIndices.of(world.model).finger_qpos.ravel()
     tried = []
@@ -353,14 +355,18 @@ def _lateral_search(ep: Episode, theta_of, *, reachable_only: bool):
                 break
             plan = _approach_plan(ep, qpos, contacts)
             if plan is not None:
-                return qpos, contacts, label, load, plan
+                if skip == 0:
+                    return qpos, contacts, label, load, plan
+                skip -= 1
         tried += [c for c in found if c[0] >= 1.0]
     if reachable_only:
         return None
     for load, qpos, contacts, label in sorted(tried, key=lambda c: c[0]):
         plan = _approach_plan(ep, qpos, contacts)
         if plan is not None:
-            return qpos, contacts, label, load, plan
+            if skip == 0:
+                return qpos, contacts, label, load, plan
+            skip -= 1
     return None
 
 
@@ -402,11 +408,12 @@ def _side_contacts(ep: Episode, tips: np.ndarray) -> np.ndarray:
     return np.mod(theta + np.pi, 2 * np.pi) - np.pi
 
 
-def _lateral_preshape(ep: Episode) -> str:
+def _lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
     the surface points nearest the fingertips of :data:`LATERAL_PINCH` there (kept a pad spacing
     apart; :func:`_lateral_search`); the hand pre-shapes outside those points and the palm moves
-    there along its approach axis. Returns what was done, for the log."""
+    there along its approach axis (``skip``: the next pose, :func:`_lateral_search`). Returns what
+    was done, for the log, or None when no pose is approached without collision."""
 
     def pinch_contacts(pose: LateralPose) -> np.ndarray:
         tips = fingertips_at(ep.planning, pose.qpos)
@@ -417,9 +424,9 @@ def _lateral_preshape(ep: Episode) -> str:
             robot.PAD_RADIUS,
         )
 
-    found = _lateral_search(ep, pinch_contacts, reachable_only=False)
+    found = _lateral_search(ep, pinch_contacts, reachable_only=False, skip=skip)
     if found is None:
-        return "no pinch pre-shape (no palm pose beside the block is approached without collision)"
+        return None
     _, _, label, load, plan = found
     _approach(ep, *plan)
     return f"pinch pre-shape, {label} (reach load {load:.2f})"
@@ -678,8 +685,9 @@ MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
 def _regrasp_or_fail(ep: Episode) -> Step:
     """After MAX_POSTURE_RETRIES the contacts stay out of reach: start again from Fine Reach with
     the hand turned (top grasp: the wrist rolled by the next of REGRASP_ROLLS) or moved (lateral:
-    the palm raised or lowered by REGRASP_HEIGHTS), so the grasp controller starts from other
-    contacts; after MAX_REGRASPS, fail with the reason."""
+    the pinch pre-shape at the next palm pose beside the block, :func:`_lateral_preshape`), so
+    the grasp controller starts from other contacts; after MAX_REGRASPS, fail with the
+    reason."""
     record = ep.record
     reason = ep.reach.reason if ep.reach is not None else "unreachable"
     if record.regrasps >= MAX_REGRASPS:
@@ -687,26 +695,32 @@ def _regrasp_or_fail(ep: Episode) -> Step:
             Failure.CONTACT_UNREACHABLE,
             f"after {MAX_REGRASPS} regrasps and {record.posture_retries} posture retries: {reason}",
         )
+    if _slides(ep):
+        # lateral: the pinch pre-shape at the next palm pose beside the block
+        record.regrasps += 1
+        done = _lateral_preshape(ep, skip=record.regrasps)
+        if done is None:
+            raise TaskFailedError(
+                Failure.CONTACT_UNREACHABLE, f"{reason}; no other palm pose to regrasp from"
+            )
+        record.posture_retries = 0
+        ep.synthesis = ep.contacts = ep.reach = None
+        return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp: {done}")
     world = ep.world
     checker = CollisionChecker(world, model=ep.planning)
     arm_now = world.arm_targets()
     # back to the coarse reach's goal (the hand hovering in its pre-shape), turned or moved
     p, R = ep.coarse.goal.palm_position, ep.coarse.goal.palm_rotation
     seed = arm_now.copy()
-    if ep.coarse.approach == "top":
-        roll = REGRASP_ROLLS[record.regrasps]
-        c, s = np.cos(roll), np.sin(roll)
-        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        goal_p, goal_R = p, turn @ R
-        seed[-1] += roll
-        how = f"wrist turned {np.degrees(roll):+.0f} deg"
-    else:
-        dz = REGRASP_HEIGHTS[record.regrasps]
-        goal_p, goal_R = p + np.array([0.0, 0.0, dz]), R
-        how = f"palm moved {dz * 100:+.0f} cm"
+    roll = REGRASP_ROLLS[record.regrasps]
+    c, s = np.cos(roll), np.sin(roll)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    goal_p, goal_R = p, turn @ R
+    seed[-1] += roll
+    how = f"wrist turned {np.degrees(roll):+.0f} deg"
     ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
     record.regrasps += 1
-    if not ik.found and ep.coarse.approach == "top":  # the other way round
+    if not ik.found:  # the other way round
         goal_R = goal_R @ np.diag([-1.0, -1.0, 1.0])
         seed[-1] += np.pi if seed[-1] < 0 else -np.pi
         ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
@@ -719,10 +733,9 @@ def _regrasp_or_fail(ep: Episode) -> Step:
     return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp with the {how}")
 
 
-#: Regrasps after the contacts stay out of reach, and how the hand is turned or moved for each.
+#: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned for each.
 MAX_REGRASPS = 2
 REGRASP_ROLLS = (np.pi / 4, -np.pi / 4)
-REGRASP_HEIGHTS = (0.03, -0.03)
 
 
 def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
