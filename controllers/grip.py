@@ -115,6 +115,8 @@ def plan_grip(
     model: mujoco.MjModel | None = None,
     prism: PerceivedPrism | None = None,
     along_normal: bool = False,
+    start: ArrayLike | None = None,
+    squeeze_reach: float = SQUEEZE_REACH,
 ) -> Grip:
     """The two postures of each finger for contacts ``points`` (4, 3) with outward ``normals``
     (finger order ff, mf, rf, th), arm held where it is now; ``force_shares`` (4,) are the
@@ -129,7 +131,9 @@ def plan_grip(
     servo torques the squeeze adds past contact are then those of a force along the contact's
     inward normal, with no tangential part that friction passes on to the block (a finger row
     held horizontally, as in a lateral grasp, otherwise drags the block up or down as it
-    squeezes and tips it)."""
+    squeezes and tips it). ``start`` (16,): the hand posture the inside posture's IK starts from
+    (default the hand's present one), e.g. the one that showed the contacts reachable;
+    ``squeeze_reach``: how far (m) inside its contact the inside posture puts each fingertip."""
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     shares = np.asarray(force_shares, dtype=float)
@@ -137,9 +141,19 @@ def plan_grip(
         raise ReachError(f"force shares must be 4 positive numbers, got {force_shares!r}")
     if not grip_force > 0:
         raise ReachError(f"grip force must be positive, got {grip_force}")
-    inside, inside_pads = grip_targets(p, n, SQUEEZE_REACH)
+    inside, inside_pads = grip_targets(p, n, squeeze_reach)
+    qpos = None
+    if start is not None:
+        qpos = world.data.qpos.copy()
+        qpos[HandIndices.of(world.model if model is None else model).finger_qpos.ravel()] = start
     sol_in = solve_posture(
-        world, inside, optimize=False, joints="hand", model=model, pad_centres=inside_pads
+        world,
+        inside,
+        optimize=False,
+        joints="hand",
+        model=model,
+        pad_centres=inside_pads,
+        qpos=qpos,
     )
     model = world.model if model is None else model
     data_q = world.data.qpos.copy()
@@ -148,7 +162,7 @@ def plan_grip(
     standoff = np.full(4, PRE_CONTACT)
     while True:
         if along_normal:
-            pre_q = backed_off_hand(model, data_q, n, standoff + SQUEEZE_REACH)
+            pre_q = backed_off_hand(model, data_q, n, standoff + squeeze_reach)
             data = mujoco.MjData(model)
             data.qpos[:] = data_q
             data.qpos[finger_qpos] = pre_q

@@ -235,6 +235,7 @@ def _sampled_start(
     normals: NDArray[np.float64],
     prism: PerceivedPrism,
     heights: tuple[float, float] | None,
+    squeeze: float,
 ) -> NDArray[np.float64]:
     """``qpos`` with each finger's joints replaced by the sample that takes its contact best,
     where a sample does; ``heights`` is the range a contact may slide in (None: it stays)."""
@@ -249,7 +250,7 @@ def _sampled_start(
         MAX_PAD_SIDEWAYS,
         MIN_PAD_PALMAR,
         MAX_LINK_PENETRATION,
-        SQUEEZE_REACH,
+        squeeze,
     )
     out = qpos.copy()
     adr = HandIndices.of(model).finger_qpos
@@ -283,10 +284,12 @@ def check_reach(
     check_spacing: bool = True,
     slide: bool = False,
     samples: FingerSamples | None = None,
+    squeeze: float = SQUEEZE_REACH,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
-    The fingertips must reach :data:`SQUEEZE_REACH` past each contact, pads facing it.
+    The fingertips must reach ``squeeze`` (default :data:`SQUEEZE_REACH`) past each contact, pads
+    facing it.
     ``check_spacing=False`` leaves out the pad-spacing test (no arm posture can change it: the
     task cycle applies it to the controller's final contacts only). With ``slide`` each contact
     may move up or down its face (a planar contact is a vertical line on the prism's face) between
@@ -302,10 +305,12 @@ def check_reach(
     gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
     gaps[np.diag_indices(len(p))] = np.inf
     spacing = float(gaps.min())
-    tips, centres = grip_targets(p, n)
+    tips, centres = grip_targets(p, n, squeeze)
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
     if samples is not None:
-        start = _sampled_start(model, start, samples, p, n, prism, heights if slide else None)
+        start = _sampled_start(
+            model, start, samples, p, n, prism, heights if slide else None, squeeze
+        )
     sol = solve_posture(
         world,
         tips,
@@ -452,6 +457,7 @@ def reachable_contacts(
     qpos: ArrayLike | None = None,
     slide: bool = False,
     samples: FingerSamples | None = None,
+    squeeze: float = SQUEEZE_REACH,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
@@ -459,7 +465,8 @@ def reachable_contacts(
     the hand reaches is taken; when none is, the nearest one with its reason. ``qpos``: judge
     from that configuration instead of the world's. ``slide``: the contacts may move up or down
     their faces (:func:`check_reach`); the contacts returned are at the heights taken.
-    ``samples``: start each check's IK from sampled finger postures (:func:`check_reach`)."""
+    ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
+    its contact each fingertip must reach (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
@@ -481,6 +488,7 @@ def reachable_contacts(
             qpos=qpos,
             slide=slide,
             samples=samples,
+            squeeze=squeeze,
         )
         if slide and reach.heights is not None:
             contacts = _given(th, xy, nxy, reach.heights, perms[k])
