@@ -610,8 +610,12 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
         _move_arm_and_hand(ep, raised.q, world.hand_targets())
     move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
     move_palm(world, checker, BACKOFF * axis, BACKOFF_TIME)
-    # the arm lags its targets and its servos sag under the hand's weight: let it settle and
-    # take out the steady-state error, as apply_posture does
+    if not _slides(ep):
+        return
+    # lateral: the arm lags its targets and its servos sag under the hand's weight, which moves
+    # a horizontal finger row off its faces: let it settle and take out the steady-state error,
+    # as apply_posture does (a top grasp's fingers close from above and do not need it; it costs
+    # 1.5 s of simulated time)
     settle = round(SETTLE_TIME / world.model.opt.timestep)
     world.step(settle)
     for _ in range(SERVO_CORRECTIONS):
