@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import lsq_linear
 
 from controllers.errors import ReachError
 from controllers.hand_reach import (
@@ -56,9 +57,18 @@ FORCE_GAIN = 0.5
 MAX_PROGRESS = 2.0
 #: The squeeze has settled when every finger's force is within this fraction of its target.
 FORCE_TOLERANCE = 0.2
+#: ... or within this many newtons of it: a finger asked for a few tenths of a newton (a light
+#: finger of a balanced lateral squeeze, :func:`balanced_shares`) is within the touch signal's
+#: ripple of its target long before it is within a fifth of it.
+FORCE_FLOOR = 0.15
 #: Time (s) allowed to close and to squeeze.
 CLOSE_TIME = 3.0
 SQUEEZE_TIME = 2.0
+#: Squeeze shares balanced in 3-D (:func:`balanced_shares`): the least share of the mean force a
+#: finger keeps (so that its pad still feels the block), and the weight of the planar shares
+#: (the prior) against the 3-D balance.
+MIN_SHARE = 0.1
+PRIOR_WEIGHT = 0.1
 #: Time (s) to open the hand at release, and where each finger ends on its line (progress; a
 #: negative one extrapolates outwards beyond the pre-contact posture).
 RELEASE_TIME = 0.8
@@ -104,6 +114,9 @@ def plan_grip(
     grip_force: float = GRIP_FORCE,
     model: mujoco.MjModel | None = None,
     prism: PerceivedPrism | None = None,
+    along_normal: bool = False,
+    start: ArrayLike | None = None,
+    squeeze_reach: float = SQUEEZE_REACH,
 ) -> Grip:
     """The two postures of each finger for contacts ``points`` (4, 3) with outward ``normals``
     (finger order ff, mf, rf, th), arm held where it is now; ``force_shares`` (4,) are the
@@ -111,7 +124,16 @@ def plan_grip(
 
     With the block's ``prism`` given, a finger whose pre-contact posture would bring any of its
     links within :data:`PRE_CLEARANCE` of the block starts from further out (up to
-    :data:`MAX_PRE_CONTACT`): closing then begins with every finger clear of the block."""
+    :data:`MAX_PRE_CONTACT`): closing then begins with every finger clear of the block.
+
+    With ``along_normal`` each finger's line runs through its inside posture along the joint
+    direction ``K^-1 J^T (-n)`` (K the finger's servo gains, J its fingertip Jacobian): the
+    servo torques the squeeze adds past contact are then those of a force along the contact's
+    inward normal, with no tangential part that friction passes on to the block (a finger row
+    held horizontally, as in a lateral grasp, otherwise drags the block up or down as it
+    squeezes and tips it). ``start`` (16,): the hand posture the inside posture's IK starts from
+    (default the hand's present one), e.g. the one that showed the contacts reachable;
+    ``squeeze_reach``: how far (m) inside its contact the inside posture puts each fingertip."""
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     shares = np.asarray(force_shares, dtype=float)
@@ -119,9 +141,19 @@ def plan_grip(
         raise ReachError(f"force shares must be 4 positive numbers, got {force_shares!r}")
     if not grip_force > 0:
         raise ReachError(f"grip force must be positive, got {grip_force}")
-    inside, inside_pads = grip_targets(p, n, SQUEEZE_REACH)
+    inside, inside_pads = grip_targets(p, n, squeeze_reach)
+    qpos = None
+    if start is not None:
+        qpos = world.data.qpos.copy()
+        qpos[HandIndices.of(world.model if model is None else model).finger_qpos.ravel()] = start
     sol_in = solve_posture(
-        world, inside, optimize=False, joints="hand", model=model, pad_centres=inside_pads
+        world,
+        inside,
+        optimize=False,
+        joints="hand",
+        model=model,
+        pad_centres=inside_pads,
+        qpos=qpos,
     )
     model = world.model if model is None else model
     data_q = world.data.qpos.copy()
@@ -129,6 +161,19 @@ def plan_grip(
     data_q[finger_qpos] = sol_in.hand_q
     standoff = np.full(4, PRE_CONTACT)
     while True:
+        if along_normal:
+            pre_q = backed_off_hand(model, data_q, n, standoff + squeeze_reach)
+            data = mujoco.MjData(model)
+            data.qpos[:] = data_q
+            data.qpos[finger_qpos] = pre_q
+            mujoco.mj_kinematics(model, data)
+            if prism is None:
+                break
+            tight = finger_clearance(model, data, prism) < PRE_CLEARANCE
+            if not tight.any() or standoff[tight].min() >= MAX_PRE_CONTACT:
+                break
+            standoff[tight] = np.minimum(standoff[tight] + PRE_CONTACT_STEP, MAX_PRE_CONTACT)
+            continue
         pre = p + standoff[:, None] * n
         pre_pads = pre + robot.PAD_RADIUS * n
         sol_pre = solve_posture(
@@ -150,6 +195,10 @@ def plan_grip(
         if not tight.any() or standoff[tight].min() >= MAX_PRE_CONTACT:
             break
         standoff[tight] = np.minimum(standoff[tight] + PRE_CONTACT_STEP, MAX_PRE_CONTACT)
+    if along_normal:
+        return Grip(
+            pre_q, sol_in.hand_q, grip_force * shares / shares.mean(), in_error=sol_in.tip_error
+        )
     return Grip(
         sol_pre.hand_q,
         sol_in.hand_q,
@@ -157,6 +206,90 @@ def plan_grip(
         pre_error=sol_pre.tip_error,
         in_error=sol_in.tip_error,
     )
+
+
+def backed_off_hand(
+    model: mujoco.MjModel, qpos: ArrayLike, normals: ArrayLike, distance: ArrayLike
+) -> NDArray[np.float64]:
+    """The hand's joints (16,) with each finger moved back from its posture in ``qpos`` along
+    its normal-squeeze direction (:func:`normal_squeeze`) until, to first order, its fingertip
+    is ``distance`` (m; scalar or (4,)) further out along its contact's outward ``normals``
+    (4, 3); within the joint ranges."""
+    q = np.asarray(qpos, dtype=float)
+    direction, rate = normal_squeeze(model, q, np.asarray(normals, dtype=float))
+    back = np.broadcast_to(np.asarray(distance, dtype=float), rate.shape) / rate
+    limits = model.jnt_range[[model.joint(robot.qualified(j)).id for j in robot.HAND_JOINTS]]
+    hand = q[HandIndices.of(model).finger_qpos.ravel()]
+    return np.clip(hand - np.repeat(back, robot.JOINTS_PER_FINGER) * direction, *limits.T)
+
+
+def normal_squeeze(
+    model: mujoco.MjModel, qpos: NDArray[np.float64], normals: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per finger at ``qpos``: the joint direction (16,) ``K^-1 J^T (-n)`` of a pure normal
+    squeeze (:func:`plan_grip`) and the rate (4,) at which moving along it drives the fingertip
+    into its face (m per unit)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    idx = HandIndices.of(model)
+    actuators = [model.actuator(robot.qualified(a)).id for a in robot.HAND_ACTUATORS]
+    kp = model.actuator_gainprm[actuators, 0].reshape(idx.finger_dofs.shape)
+    jac = np.zeros((3, model.nv))
+    direction = np.zeros(idx.finger_dofs.size)
+    rate = np.zeros(len(robot.FINGERS))
+    for f, site in enumerate(idx.tip_sites):
+        mujoco.mj_jacSite(model, data, jac, None, int(site))
+        J = jac[:, idx.finger_dofs[f]]
+        d = (J.T @ -normals[f]) / kp[f]
+        d /= max(float(np.linalg.norm(d)), 1e-12)
+        direction[4 * f : 4 * f + 4] = d
+        rate[f] = max(float(-normals[f] @ J @ d), 1e-6)
+    return direction, rate
+
+
+def balanced_shares(
+    points: ArrayLike,
+    normals: ArrayLike,
+    prior: ArrayLike,
+    *,
+    min_share: float = MIN_SHARE,
+    prior_weight: float = PRIOR_WEIGHT,
+) -> NDArray[np.float64]:
+    """Relative normal forces (n,), mean 1, that squeeze the block at contacts ``points`` (n, 3)
+    with outward ``normals`` (n, 3) without a net force or moment in 3-D, as near the planar
+    shares ``prior`` (n,) as that allows.
+
+    The grasp controller balances the contacts in the block's cross-section (section 5: the
+    contacts are planar), so its shares (the S_G LP's normal forces, Eq. 13) leave out the moments
+    about horizontal axes that contacts at different heights make: a lateral grasp puts the
+    middle finger high and the thumb low on the block, and squeezing them as hard as the other
+    two tips the block over. Least squares (``scipy.optimize.lsq_linear``) on the net wrench,
+    moments divided by the contacts' RMS distance from their centroid, plus ``prior_weight``
+    times the distance to the prior and the mean held at 1, with every share at least
+    ``min_share``. Contacts at one height get the prior back when it balances them."""
+    p = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    f0 = np.asarray(prior, dtype=float)
+    k = len(p)
+    if p.shape != (k, 3) or n.shape != (k, 3) or f0.shape != (k,) or k == 0:
+        raise ReachError(
+            f"points and normals must be (n, 3) and the prior (n,), got "
+            f"{p.shape}, {n.shape}, {f0.shape}"
+        )
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n)) and np.all(np.isfinite(f0))):
+        raise ReachError("points, normals and prior must be finite")
+    if not 0.0 <= min_share < 1.0:
+        raise ReachError(f"min_share must lie in [0, 1), got {min_share}")
+    f0 = f0 / f0.mean() if f0.mean() > 0 else np.ones(k)
+    arm = p - p.mean(axis=0)
+    scale = max(float(np.sqrt((arm**2).sum(axis=1).mean())), 1e-6)
+    wrench = np.vstack([-n.T, -np.cross(arm, n).T / scale])  # (6, n): per unit normal force
+    rows = np.vstack([wrench, np.sqrt(prior_weight) * np.eye(k), np.full((1, k), 10.0)])
+    rhs = np.concatenate([np.zeros(6), np.sqrt(prior_weight) * f0, [10.0 * k]])
+    sol = lsq_linear(rows, rhs, bounds=(min_share, np.inf))
+    return sol.x / sol.x.mean()
 
 
 def move_hand(world: World, q: ArrayLike, duration: float) -> None:
@@ -214,8 +347,8 @@ class SqueezeResult:
 
 def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> SqueezeResult:
     """Regulate every finger's force to its own target (its share of the grip) until all are
-    within FORCE_TOLERANCE of it; the fingers' servo targets then stay where the squeeze left
-    them (the grip holds as a stiffness while the arm lifts and carries)."""
+    within FORCE_TOLERANCE (or FORCE_FLOOR) of it; the fingers' servo targets then stay where
+    the squeeze left them (the grip holds as a stiffness while the arm lifts and carries)."""
     steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
     t0 = world.time
     settled_for = 0
@@ -226,7 +359,8 @@ def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> Sque
         )
         world.set_hand_targets(grip.targets())
         world.step(steps)
-        ok = np.all(np.abs(world.touch() - grip.forces) <= FORCE_TOLERANCE * grip.forces)
+        slack = np.maximum(FORCE_TOLERANCE * grip.forces, FORCE_FLOOR)
+        ok = np.all(np.abs(world.touch() - grip.forces) <= slack)
         settled_for = settled_for + 1 if ok else 0
         if settled_for >= 5:
             break

@@ -9,7 +9,9 @@ set of contacts is accepted, :func:`check_reach` asks, in this order:
 2. can each fingertip get there: hand inverse kinematics (mink, arm held) puts every fingertip
    site within :data:`CONTACT_TOLERANCE` of its contact point;
 3. with the pad, not the side or back of the fingertip: the pad normal within
-   :data:`MAX_PAD_ANGLE` of the face's inward normal;
+   :data:`MAX_PAD_ANGLE` of the face's inward normal, the flexion axis not within
+   :data:`MAX_PAD_SIDEWAYS` of the face normal, the contact on the palmar half
+   (:data:`MIN_PAD_PALMAR`), where the touch sensor feels it;
 4. without a finger link inside the block: no link deeper than :data:`MAX_LINK_PENETRATION` in
    the perceived prism.
 The first failure is the reason given. The block is the perceived one throughout.
@@ -26,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from controllers.fine_reach import GRASP_DEPTH
+from controllers.finger_samples import Criteria, FingerSamples
 from controllers.posture import HandIndices, solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -44,6 +47,12 @@ CONTACT_TOLERANCE = 0.002
 #: side of the fingertip, not its pad, would touch.
 MAX_PAD_ANGLE = np.deg2rad(65.0)
 MAX_PAD_SIDEWAYS = 0.8
+#: The touch sensor covers the palmar half of the distal link (models/hand.xml); a contact on the
+#: rounded end of the fingertip is felt only if it lies on that half too: the direction from the
+#: link's axis into the face must have at least this palmar component (the contact 1.7 mm into
+#: the palmar half). The pad-angle test alone lets a contact at the end of the tip slip onto the
+#: back of it, where the squeeze, regulated on touch, cannot feel it.
+MIN_PAD_PALMAR = 0.2
 #: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
 MAX_LINK_PENETRATION = 0.0015
 #: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
@@ -120,6 +129,10 @@ class HandReach:
     pad_angle: NDArray[np.float64]  #: (4,) rad between pad normal and inward face normal
     penetration: float  #: deepest finger link inside the perceived block (m, >= 0)
     min_spacing: float  #: closest pair of pad centres on their contacts (m)
+    heights: NDArray[np.float64] | None = None  #: (4,) contact heights (m) the fingers took
+    #: the criteria's worst value as a share of its limit (tip error, pad angle, sideways, link
+    #: penetration; pad spacing left out): below 1 every finger passes, lower is more margin
+    load: float = np.inf
 
 
 def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:
@@ -181,6 +194,12 @@ def fingertips_at(model: mujoco.MjModel, qpos: ArrayLike) -> NDArray[np.float64]
     return data.site_xpos[sites].copy()
 
 
+def finger_palmar(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world direction of each distal link's palmar normal (z)."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3)[:, 2] for b in bodies])
+
+
 def finger_sideways(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
     """(4, 3) world direction of each distal link's sideways axis (its flexion axis, x)."""
     bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
@@ -203,6 +222,57 @@ def grip_targets(
     return tips, tips + robot.PAD_RADIUS * n
 
 
+#: A sampled finger posture is an IK start for a contact when its fingertip lies this close (m)
+#: to the contact (its vertical line, for sliding contacts).
+SAMPLE_TOLERANCE = 0.003
+
+
+def _sampled_start(
+    model: mujoco.MjModel,
+    qpos: NDArray[np.float64],
+    samples: FingerSamples,
+    points: NDArray[np.float64],
+    normals: NDArray[np.float64],
+    prism: PerceivedPrism,
+    heights: tuple[float, float] | None,
+    squeeze: float,
+) -> NDArray[np.float64]:
+    """``qpos`` with each finger's joints replaced by the sample that takes its contact best,
+    where a sample does; ``heights`` is the range a contact may slide in (None: it stays)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    palm = model.body(robot.hand_name(robot.PALM_BODY)).id
+    p0, R0 = data.xpos[palm].copy(), data.xmat[palm].reshape(3, 3).copy()
+    criteria = Criteria(
+        SAMPLE_TOLERANCE,
+        MAX_PAD_ANGLE,
+        MAX_PAD_SIDEWAYS,
+        MIN_PAD_PALMAR,
+        MAX_LINK_PENETRATION,
+        squeeze,
+    )
+    out = qpos.copy()
+    adr = HandIndices.of(model).finger_qpos
+    # sliding contacts prefer the palm's height: opposed fingers then press at one height
+    prefer = float(p0[2]) if heights is not None else None
+    for f in range(len(robot.FINGERS)):
+        span = heights if heights is not None else (points[f, 2], points[f, 2])
+        q, _ = samples.best(
+            f, p0, R0, points[f], normals[f], span, prism.signed_distance, criteria, prefer
+        )
+        if q is not None:
+            out[adr[f]] = q
+    return out
+
+
+#: Contacts stay at least GRASP_DEPTH (m) below the block's top (where Fine Reach takes the
+#: fingertips; a contact nearer the top edge is pressed by the side of the fingertip) and
+#: BOTTOM_MARGIN (m) above the table.
+TOP_MARGIN = GRASP_DEPTH
+BOTTOM_MARGIN = 0.02
+
+
 def check_reach(
     world: World,
     prism: PerceivedPrism,
@@ -212,12 +282,21 @@ def check_reach(
     qpos: ArrayLike | None = None,
     model: mujoco.MjModel | None = None,
     check_spacing: bool = True,
+    slide: bool = False,
+    samples: FingerSamples | None = None,
+    squeeze: float = SQUEEZE_REACH,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
-    The fingertips must reach :data:`SQUEEZE_REACH` past each contact, pads facing it.
+    The fingertips must reach ``squeeze`` (default :data:`SQUEEZE_REACH`) past each contact, pads
+    facing it.
     ``check_spacing=False`` leaves out the pad-spacing test (no arm posture can change it: the
-    task cycle applies it to the controller's final contacts only)."""
+    task cycle applies it to the controller's final contacts only). With ``slide`` each contact
+    may move up or down its face (a planar contact is a vertical line on the prism's face) between
+    :data:`BOTTOM_MARGIN` above the prism's bottom and :data:`TOP_MARGIN` below its top; the
+    heights taken are in the verdict's ``heights``. With ``samples`` each finger's IK starts
+    from the sampled posture that takes its contact best (:meth:`FingerSamples.best`) where one
+    does, instead of from the hand's present posture: a global search the local IK refines."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -226,7 +305,12 @@ def check_reach(
     gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
     gaps[np.diag_indices(len(p))] = np.inf
     spacing = float(gaps.min())
-    tips, centres = grip_targets(p, n)
+    tips, centres = grip_targets(p, n, squeeze)
+    heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
+    if samples is not None:
+        start = _sampled_start(
+            model, start, samples, p, n, prism, heights if slide else None, squeeze
+        )
     sol = solve_posture(
         world,
         tips,
@@ -237,7 +321,9 @@ def check_reach(
         qpos=start,
         model=model,
         pad_centres=centres,
+        slide=heights if slide else None,
     )
+    heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     data = mujoco.MjData(model)
     data.qpos[:] = start
     data.qpos[HandIndices.of(model).finger_qpos.ravel()] = sol.hand_q
@@ -245,6 +331,7 @@ def check_reach(
     cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))
     sideways = np.abs(np.einsum("fd,fd->f", finger_sideways(model, data), n))
+    palmar = np.einsum("fd,fd->f", finger_palmar(model, data), -n)
     depth = link_penetration(model, data, prism)
     deepest = max(depth.values())
     reason = ""
@@ -266,6 +353,12 @@ def check_reach(
             f"{robot.FINGERS[worst]} would touch with the side of its fingertip "
             f"({np.degrees(angle[worst]):.0f} deg from the pad)"
         )
+    elif palmar.min() < MIN_PAD_PALMAR:
+        worst = int(np.argmin(palmar))
+        reason = (
+            f"{robot.FINGERS[worst]} would touch with the back of its fingertip, where its "
+            f"touch sensor does not reach"
+        )
     elif deepest > MAX_LINK_PENETRATION:
         finger = max(depth, key=depth.__getitem__)
         reason = f"{finger} links would penetrate the block by {deepest * 1000:.1f} mm"
@@ -277,14 +370,17 @@ def check_reach(
         pad_angle=angle,
         penetration=max(deepest, 0.0),
         min_spacing=spacing,
+        heights=heights.copy(),
+        load=float(
+            max(
+                sol.tip_error.max() / CONTACT_TOLERANCE,
+                angle.max() / MAX_PAD_ANGLE,
+                sideways.max() / MAX_PAD_SIDEWAYS,
+                ((1.0 - palmar) / (1.0 - MIN_PAD_PALMAR)).max(),
+                deepest / MAX_LINK_PENETRATION,
+            )
+        ),
     )
-
-
-#: Contacts stay at least GRASP_DEPTH (m) below the block's top (where Fine Reach takes the
-#: fingertips; a contact nearer the top edge is pressed by the side of the fingertip) and
-#: BOTTOM_MARGIN (m) above the table.
-TOP_MARGIN = GRASP_DEPTH
-BOTTOM_MARGIN = 0.02
 
 
 @dataclass(frozen=True, eq=False)
@@ -359,12 +455,18 @@ def reachable_contacts(
     check_spacing: bool = True,
     tries: int = ASSIGNMENTS_TRIED,
     qpos: ArrayLike | None = None,
+    slide: bool = False,
+    samples: FingerSamples | None = None,
+    squeeze: float = SQUEEZE_REACH,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
     fingertip's height), the first ``tries`` are checked with :func:`check_reach` and the first
     the hand reaches is taken; when none is, the nearest one with its reason. ``qpos``: judge
-    from that configuration instead of the world's."""
+    from that configuration instead of the world's. ``slide``: the contacts may move up or down
+    their faces (:func:`check_reach`); the contacts returned are at the heights taken.
+    ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
+    its contact each fingertip must reach (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
@@ -384,7 +486,12 @@ def reachable_contacts(
             model=model,
             check_spacing=check_spacing,
             qpos=qpos,
+            slide=slide,
+            samples=samples,
+            squeeze=squeeze,
         )
+        if slide and reach.heights is not None:
+            contacts = _given(th, xy, nxy, reach.heights, perms[k])
         if reach.reachable:
             return contacts, reach
         if first is None:

@@ -194,6 +194,9 @@ class PostureResult:
     #: (k, 21) arm (5) and hand (16) joints of the IK's iterates, start to end: a path that keeps
     #: the solver's limits (collision avoidance included) all along, for apply_posture to follow.
     path: NDArray[np.float64] | None = None
+    #: (4, 3) the fingertip targets at the end: the given ones, or with ``slide`` the heights
+    #: the fingertips slid to
+    targets: NDArray[np.float64] | None = None
 
 
 def avoidance_groups(
@@ -269,6 +272,7 @@ def solve_posture(
     touchable: str | None = None,
     fingers_may_touch: bool = False,
     pad_centres: ArrayLike | None = None,
+    slide: tuple[float, float] | None = None,
 ) -> PostureResult:
     """Kinematic posture control from the world's current state, or from ``qpos`` (the world is
     not changed).
@@ -287,7 +291,10 @@ def solve_posture(
     at a lower cost: with a fingertip target on a surface point and its pad centre one pad radius
     out along the surface normal, the pad, not the side or the end of the finger, faces the
     surface (position-only IK leaves each finger one redundant degree of freedom, its pad's
-    orientation).
+    orientation). ``slide`` = (lowest, highest) world z (m) lets each fingertip target slide
+    vertically within that range while the fingertips are brought to their targets: a contact
+    on a prism's vertical face is planar (section 5), a vertical line rather than a point, so
+    only the target's horizontal position is held and its height follows the fingertip's.
     """
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
@@ -308,11 +315,27 @@ def solve_posture(
     tips = _point_tasks(robot.FINGERTIP_SITES, goal, TIP_COST)
     pads = []
     if pad_centres is not None:
-        centres = np.asarray(pad_centres, dtype=float)
+        centres = np.array(pad_centres, dtype=float)
         if centres.shape != goal.shape or not np.all(np.isfinite(centres)):
             raise PostureError(f"pad centres must be a finite (4, 3) array, got {centres.shape}")
         pads = _point_tasks(robot.PAD_CENTRE_SITES, centres, PAD_CENTRE_COST)
     tips_and_pads = tips + pads
+    if slide is not None:
+        lo_z, hi_z = float(slide[0]), float(slide[1])
+        if not (np.isfinite(lo_z) and np.isfinite(hi_z) and lo_z <= hi_z):
+            raise PostureError(f"slide must be a finite (low, high) height range, got {slide!r}")
+        goal = goal.copy()
+        pad_rise = centres[:, 2] - goal[:, 2] if pads else np.zeros(len(goal))
+
+    def follow_heights() -> None:
+        """Slide the targets' heights to the fingertips' (within ``slide``)."""
+        goal[:, 2] = np.clip(cfg.data.site_xpos[idx.tip_sites][:, 2], lo_z, hi_z)
+        for task, target in zip(tips, goal, strict=True):
+            task.set_target(mink.SE3.from_translation(target))
+        for k, task in enumerate(pads):
+            centres[k, 2] = goal[k, 2] + pad_rise[k]
+            task.set_target(mink.SE3.from_translation(centres[k]))
+
     limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
     avoidance: list[mink.CollisionAvoidanceLimit] = []
     if avoid_collisions:
@@ -384,6 +407,8 @@ def solve_posture(
 
     last_pad = np.inf
     for _ in range(reach_iterations):
+        if slide is not None:
+            follow_heights()
         now_pad = pad_error()
         if tip_error().max() < 0.5 * tolerance and last_pad - now_pad < PAD_SETTLED:
             break
@@ -392,6 +417,8 @@ def solve_posture(
             break
         path.append(snapshot())
         iterations += 1
+    if slide is not None:
+        follow_heights()
     err = tip_error()
     if err.max() < tolerance and optimize:
         manip = ManipulabilityTask(model)
@@ -431,6 +458,7 @@ def solve_posture(
         iterations=iterations,
         unreachable=unreachable,
         path=np.array(path),
+        targets=goal.copy(),
     )
 
 

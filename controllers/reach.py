@@ -186,8 +186,8 @@ def _frame(y: NDArray[np.float64], z: NDArray[np.float64]) -> NDArray[np.float64
 def goal_poses(
     target: ReachTarget, base_xy: ArrayLike
 ) -> dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]:
-    """Palm poses (position, rotation) of each approach; two candidates per approach (the hand
-    turned by pi about its approach axis).
+    """Palm poses (position, rotation) of each approach: two top candidates (the hand turned by
+    pi about its approach axis) and one lateral.
 
     Top: palm down, the thumb-to-middle-finger axis (hand y) across the block's narrowest width.
     Lateral: palm facing the block along the arm's radial direction, hand y vertical, so the
@@ -195,7 +195,9 @@ def goal_poses(
     from left and right while the middle finger and the thumb face it from above and below the
     palm centre. (With the finger row vertical instead, three fingers stack on one face against
     the thumb, a grasp S_G rejects: ``benchmarks.hand_reachability`` finds lateral grasps with
-    S_G <= 0.3 for this roll only.)"""
+    S_G <= 0.3 for this roll only.) Hand y points up, the thumb below: turned the other way,
+    the middle finger reaches down the block to within a few centimetres of the table and its
+    links collide with it."""
     centre = np.array([*target.position_xy, 0.0])
     radial = centre - np.array([*np.asarray(base_xy, float), 0.0])
     radial[2] = 0.0
@@ -208,7 +210,7 @@ def goal_poses(
     lat_pos = centre - standoff * radial + np.array([0.0, 0.0, target.top_z - LATERAL_DEPTH])
     return {
         "top": [(top_pos, _frame(s * axis, down)) for s in (1.0, -1.0)],
-        "lateral": [(lat_pos, _frame(s * up, radial)) for s in (1.0, -1.0)],
+        "lateral": [(lat_pos, _frame(up, radial))],
     }
 
 

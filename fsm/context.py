@@ -102,6 +102,8 @@ class Episode:
     grip: Grip | None = None
     empty_hand_force: NDArray[np.float64] | None = None
     expected_load: float = 0.0  #: N, perceived volume x wood density x g
+    #: sampled finger postures for lateral reachability searches (drawn on first use)
+    finger_samples: Any | None = None
 
     @property
     def record(self) -> CycleRecord:

@@ -4,11 +4,13 @@ reason for the transition, or raises :class:`TaskFailedError` with a named reaso
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
+import mujoco
 import numpy as np
 
 from controllers.cspace import CollisionChecker
@@ -20,19 +22,42 @@ from controllers.fine_reach import (
     fine_reach,
     project_to_surface,
 )
+from controllers.finger_samples import FingerSamples
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis, separate_contacts
-from controllers.grip import PRE_CONTACT, close, move_hand, plan_grip, release, squeeze
+from controllers.grip import (
+    GRIP_FORCE,
+    PRE_CONTACT,
+    backed_off_hand,
+    balanced_shares,
+    close,
+    move_hand,
+    plan_grip,
+    release,
+    squeeze,
+)
 from controllers.hand_reach import (
+    BOTTOM_MARGIN,
     MIN_PAD_SPACING,
+    PAD_NORMAL_LOCAL,
+    SQUEEZE_REACH,
+    TOP_MARGIN,
     PerceivedPrism,
+    fingertips_at,
     grip_targets,
     reachable_contacts,
 )
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
-from controllers.posture import HandIndices, apply_posture, solve_posture
+from controllers.posture import (
+    SERVO_CORRECTIONS,
+    SETTLE_TIME,
+    HandIndices,
+    apply_posture,
+    solve_posture,
+)
 from controllers.reach import (
     APPROACHES,
+    LATERAL_DEPTH,
     ReachTarget,
     execute_path,
     plan_arm_path,
@@ -90,6 +115,9 @@ ARM_MOVE_TIME = 1.0
 #: The held load must be at least this share of the perceived block's weight after the lift, and
 #: during the carry (wrist sensor), else the block slipped / was dropped.
 MIN_HELD_SHARE = 0.5
+#: Pads that carry at least this share of the grip's mean force count for the lift's slip check
+#: in a lateral grasp.
+CARRYING_SHARE = 0.5
 #: A carried block counts as dropped when, over DROP_WINDOW control periods, the wrist sensor's
 #: mean load falls below DROP_SHARE of the block's expected weight, or fewer than two pads feel it.
 DROP_WINDOW = 15
@@ -281,10 +309,192 @@ def coarse_reach(ep: Episode) -> Step:
     run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
     touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
     lengths = ", ".join(f"{a} {p.length:.2f} rad" for a, p in plan.candidates.items() if p.found)
+    preshape = ""
+    if plan.approach == "lateral":
+        done = _lateral_preshape(ep)
+        preshape = "; " + (done or "no pinch pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
-        f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way",
+        f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way{preshape}",
     )
+
+
+def _lateral_search(ep: Episode, theta_of, *, reachable_only: bool, skip: int = 0):
+    """Search the palm poses of :func:`_lateral_poses`, the palm nearest the block first (the
+    fingers on the far contacts keep room to squeeze: at the limit of their reach they push the
+    block along instead), for one from which the hand reaches the contacts ``theta_of(pose)``
+    (the hand IK starting from sampled finger postures) and that it approaches without
+    collision (:func:`_approach_plan`); of several at one distance, the one with the lowest
+    ``HandReach.load``. Without ``reachable_only``, when none reaches, the lowest load that
+    approaches. ``skip`` passes over that many acceptable poses first (a regrasp tries the next).
+    Returns (qpos, contacts, label, load, approach plan) or None."""
+    world = ep.world
+    hand_adr = HandIndices.of(world.model).finger_qpos.ravel()
+    tried = []
+    for _, group in itertools.groupby(_lateral_poses(ep), key=lambda pose: pose.gap):
+        found = []
+        for pose in group:
+            contacts, reach = reachable_contacts(
+                world,
+                ep.prism,
+                ep.target,
+                theta_of(pose),
+                model=ep.planning,
+                qpos=pose.qpos,
+                tries=LATERAL_TRIES,
+                check_spacing=False,
+                slide=True,
+                samples=_samples(ep),
+                squeeze=LATERAL_SQUEEZE_REACH,
+            )
+            qpos = pose.qpos.copy()
+            qpos[hand_adr] = reach.hand_q
+            found.append((reach.load, qpos, contacts, pose.label))
+        found.sort(key=lambda c: c[0])
+        for load, qpos, contacts, label in found:
+            if load >= 1.0:
+                break
+            plan = _approach_plan(ep, qpos, contacts)
+            if plan is not None:
+                if skip == 0:
+                    return qpos, contacts, label, load, plan
+                skip -= 1
+        tried += [c for c in found if c[0] >= 1.0]
+    if reachable_only:
+        return None
+    for load, qpos, contacts, label in sorted(tried, key=lambda c: c[0]):
+        plan = _approach_plan(ep, qpos, contacts)
+        if plan is not None:
+            if skip == 0:
+                return qpos, contacts, label, load, plan
+            skip -= 1
+    return None
+
+
+#: Side contacts stay this far (m) inside the block's extent along the approach axis.
+SIDE_INSET = 0.004
+
+
+def _side_contacts(ep: Episode, tips: np.ndarray) -> np.ndarray:
+    """Contact coordinates (polar angles on the perceived polygon) where lines from the
+    approach axis across it, through each fingertip of ``tips`` (4, 3), meet the block's outline
+    on the fingertip's side: the side faces a lateral pinch closes on. (The nearest surface point
+    of a fingertip in front of the block's near corner is on the near face, where the palm
+    pushes against nothing.) A fingertip before or beyond the block along the axis takes the
+    block's first or last SIDE_INSET."""
+    centre = np.asarray(ep.target.position_xy)
+    axis = centre - np.asarray(robot_base_xy(ep))
+    axis /= np.linalg.norm(axis)
+    across = np.array([-axis[1], axis[0]])
+    foot = ep.target.footprint()
+    depth = (foot - centre) @ axis
+    lo, hi = depth.min() + SIDE_INSET, depth.max() - SIDE_INSET
+    edges = np.roll(foot, -1, axis=0) - foot
+    theta = np.empty(len(tips))
+    for f, tip in enumerate(tips[:, :2]):
+        d = float(np.clip((tip - centre) @ axis, lo, hi))
+        side = 1.0 if (tip - centre) @ across >= 0.0 else -1.0
+        origin, ray = centre + d * axis, side * across
+        # the ray leaves the convex outline through exactly one edge
+        best = np.inf
+        for a, e in zip(foot, edges, strict=True):
+            m = np.column_stack([ray, -e])
+            if abs(np.linalg.det(m)) < 1e-12:
+                continue
+            t, u = np.linalg.solve(m, a - origin)
+            if t > 0.0 and -1e-9 <= u <= 1.0 + 1e-9:
+                best = min(best, t)
+        local = origin + best * ray - centre
+        theta[f] = np.arctan2(local[1], local[0]) - ep.target.yaw
+    return np.mod(theta + np.pi, 2 * np.pi) - np.pi
+
+
+def _lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
+    """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
+    the surface points nearest the fingertips of :data:`LATERAL_PINCH` there (kept a pad spacing
+    apart; :func:`_lateral_search`); the hand pre-shapes outside those points and the palm moves
+    there along its approach axis (``skip``: the next pose, :func:`_lateral_search`). Returns what
+    was done, for the log, or None when no pose is approached without collision."""
+
+    def pinch_contacts(pose: LateralPose) -> np.ndarray:
+        tips = fingertips_at(ep.planning, pose.qpos)
+        return separate_contacts(
+            ep.target.polygon,
+            _side_contacts(ep, tips),
+            MIN_PAD_SPACING + SEPARATION_MARGIN,
+            robot.PAD_RADIUS,
+        )
+
+    found = _lateral_search(ep, pinch_contacts, reachable_only=False, skip=skip)
+    if found is None:
+        return None
+    _, _, label, load, plan = found
+    _approach(ep, *plan)
+    return f"pinch pre-shape, {label} (reach load {load:.2f})"
+
+
+#: Fingertip distances (m) outside the contacts of the hand postures a new arm posture may be
+#: approached with, tried in order (a block standing at an angle to the approach axis needs the
+#: fingers wider open); at the posture the fingers then close to PRE_CONTACT.
+APPROACH_STANDOFFS = (PRE_CONTACT, 0.02, 0.03)
+
+
+def _approach_plan(ep: Episode, qpos: np.ndarray, contacts) -> tuple[np.ndarray, ...] | None:
+    """The arm posture of ``qpos``, a hand posture whose straight approach to it along the palm's
+    axis clears the perceived block (:func:`_approach_clear`; the fingertips
+    :data:`APPROACH_STANDOFFS` outside their contacts) and the hand's pre-contact posture there
+    (PRE_CONTACT outside); None when no approach clears. ``qpos``'s hand takes ``contacts``
+    (LATERAL_SQUEEZE_REACH inside); the fingers back off from it along their squeeze directions
+    (:func:`controllers.grip.backed_off_hand`)."""
+    m = ep.world.model
+    arm_q = qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]]
+
+    def hand_at(standoff: float) -> np.ndarray:
+        # back from the posture that takes the contacts, along the fingers' squeeze directions
+        # (a finger reaching round a corner cannot hold its pad facing a point further out)
+        return backed_off_hand(
+            ep.planning, qpos, contacts.normals, standoff + LATERAL_SQUEEZE_REACH
+        )
+
+    hand_pre = hand_at(PRE_CONTACT)
+    for standoff in APPROACH_STANDOFFS:
+        wide = hand_pre if standoff == PRE_CONTACT else hand_at(standoff)
+        if _approach_clear(ep, arm_q, wide):
+            return arm_q, wide, hand_pre
+    return None
+
+
+def _approach(ep: Episode, arm_q: np.ndarray, wide: np.ndarray, hand_pre: np.ndarray) -> None:
+    """:func:`_reposition` with the hand at ``wide``, then the fingers close to ``hand_pre``."""
+    _reposition(ep, arm_q, wide)
+    if not np.array_equal(wide, hand_pre):
+        move_hand(ep.world, hand_pre, PRESHAPE_TIME)
+
+
+#: The straight approach of a new posture (the last BACKOFF of it) must keep the hand this far
+#: (m) from the perceived block and everything else, checked every APPROACH_STEP (m).
+APPROACH_CLEARANCE = 0.003
+APPROACH_STEP = 0.01
+
+
+def _approach_clear(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> bool:
+    """Whether the palm's straight approach to ``arm_q`` along the coarse reach's approach axis
+    over BACKOFF (as :func:`_reposition` makes it), the hand held at ``hand_q``, stays
+    APPROACH_CLEARANCE clear of the perceived world."""
+    checker = CollisionChecker(
+        ep.world, model=ep.planning, hand_q=hand_q, clearance=APPROACH_CLEARANCE
+    )
+    p, R = checker.palm_pose(arm_q)
+    axis = ep.coarse.goal.palm_rotation[:, 2]  # the approach _reposition takes
+    q = np.asarray(arm_q, dtype=float)
+    if checker.collides(q):
+        return False
+    for back in np.arange(APPROACH_STEP, BACKOFF + 1e-9, APPROACH_STEP):
+        ik = checker.solve_ik(p - back * axis, R, q)
+        if not ik.found or checker.collides(ik.q):
+            return False
+        q = ik.q
+    return True
 
 
 # --- Fine Reach ---------------------------------------------------------------------------------
@@ -400,6 +610,17 @@ def _reposition(ep: Episode, arm_q: np.ndarray, hand_q: np.ndarray) -> None:
         _move_arm_and_hand(ep, raised.q, world.hand_targets())
     move_hand(world, hand_q, PRESHAPE_TIME)  # then opens, clear of the block
     move_palm(world, checker, BACKOFF * axis, BACKOFF_TIME)
+    if not _slides(ep):
+        return
+    # lateral: the arm lags its targets and its servos sag under the hand's weight, which moves
+    # a horizontal finger row off its faces: let it settle and take out the steady-state error,
+    # as apply_posture does (a top grasp's fingers close from above and do not need it; it costs
+    # 1.5 s of simulated time)
+    settle = round(SETTLE_TIME / world.model.opt.timestep)
+    world.step(settle)
+    for _ in range(SERVO_CORRECTIONS):
+        world.set_arm_targets(world.arm_targets() + arm_q - world.arm_qpos())
+        world.step(settle)
 
 
 def posture_control(ep: Episode) -> Step:
@@ -437,19 +658,23 @@ def posture_control(ep: Episode) -> Step:
         return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
     qpos, contacts, label = found
     ep.contacts = contacts
-    m = world.model
-    arm_q = qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]]
-    pre, pre_pads = grip_targets(contacts.points, contacts.normals, -PRE_CONTACT)
-    hand_pre = solve_posture(
-        world,
-        pre,
-        optimize=False,
-        joints="hand",
-        model=ep.planning,
-        pad_centres=pre_pads,
-        qpos=qpos,
-    ).hand_q
-    _reposition(ep, arm_q, hand_pre)
+    plan = _approach_plan(ep, qpos, contacts) if _slides(ep) else None
+    if plan is not None:
+        _approach(ep, *plan)
+    else:
+        m = world.model
+        arm_q = qpos[[m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]]
+        pre, pre_pads = grip_targets(contacts.points, contacts.normals, -PRE_CONTACT)
+        hand_pre = solve_posture(
+            world,
+            pre,
+            optimize=False,
+            joints="hand",
+            model=ep.planning,
+            pad_centres=pre_pads,
+            qpos=qpos,
+        ).hand_q
+        _reposition(ep, arm_q, hand_pre)
     return Step(
         State.WRENCH_CLOSURE,
         f"arm reconfigured (search from {label}) so that the contacts are within reach",
@@ -467,8 +692,9 @@ MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
 def _regrasp_or_fail(ep: Episode) -> Step:
     """After MAX_POSTURE_RETRIES the contacts stay out of reach: start again from Fine Reach with
     the hand turned (top grasp: the wrist rolled by the next of REGRASP_ROLLS) or moved (lateral:
-    the palm raised or lowered by REGRASP_HEIGHTS), so the grasp controller starts from other
-    contacts; after MAX_REGRASPS, fail with the reason."""
+    the pinch pre-shape at the next palm pose beside the block, :func:`_lateral_preshape`), so
+    the grasp controller starts from other contacts; after MAX_REGRASPS, fail with the
+    reason."""
     record = ep.record
     reason = ep.reach.reason if ep.reach is not None else "unreachable"
     if record.regrasps >= MAX_REGRASPS:
@@ -476,26 +702,32 @@ def _regrasp_or_fail(ep: Episode) -> Step:
             Failure.CONTACT_UNREACHABLE,
             f"after {MAX_REGRASPS} regrasps and {record.posture_retries} posture retries: {reason}",
         )
+    if _slides(ep):
+        # lateral: the pinch pre-shape at the next palm pose beside the block
+        record.regrasps += 1
+        done = _lateral_preshape(ep, skip=record.regrasps)
+        if done is None:
+            raise TaskFailedError(
+                Failure.CONTACT_UNREACHABLE, f"{reason}; no other palm pose to regrasp from"
+            )
+        record.posture_retries = 0
+        ep.synthesis = ep.contacts = ep.reach = None
+        return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp: {done}")
     world = ep.world
     checker = CollisionChecker(world, model=ep.planning)
     arm_now = world.arm_targets()
     # back to the coarse reach's goal (the hand hovering in its pre-shape), turned or moved
     p, R = ep.coarse.goal.palm_position, ep.coarse.goal.palm_rotation
     seed = arm_now.copy()
-    if ep.coarse.approach == "top":
-        roll = REGRASP_ROLLS[record.regrasps]
-        c, s = np.cos(roll), np.sin(roll)
-        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        goal_p, goal_R = p, turn @ R
-        seed[-1] += roll
-        how = f"wrist turned {np.degrees(roll):+.0f} deg"
-    else:
-        dz = REGRASP_HEIGHTS[record.regrasps]
-        goal_p, goal_R = p + np.array([0.0, 0.0, dz]), R
-        how = f"palm moved {dz * 100:+.0f} cm"
+    roll = REGRASP_ROLLS[record.regrasps]
+    c, s = np.cos(roll), np.sin(roll)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    goal_p, goal_R = p, turn @ R
+    seed[-1] += roll
+    how = f"wrist turned {np.degrees(roll):+.0f} deg"
     ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
     record.regrasps += 1
-    if not ik.found and ep.coarse.approach == "top":  # the other way round
+    if not ik.found:  # the other way round
         goal_R = goal_R @ np.diag([-1.0, -1.0, 1.0])
         seed[-1] += np.pi if seed[-1] < 0 else -np.pi
         ik = checker.solve_ik(goal_p - BACKOFF * goal_R[:, 2], goal_R, seed)
@@ -508,10 +740,9 @@ def _regrasp_or_fail(ep: Episode) -> Step:
     return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp with the {how}")
 
 
-#: Regrasps after the contacts stay out of reach, and how the hand is turned or moved for each.
+#: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned for each.
 MAX_REGRASPS = 2
 REGRASP_ROLLS = (np.pi / 4, -np.pi / 4)
-REGRASP_HEIGHTS = (0.03, -0.03)
 
 
 def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
@@ -523,38 +754,71 @@ def _palm_tilt(ep: Episode, arm_q: np.ndarray) -> float:
 
 
 def _posture_seeds(ep: Episode) -> list[tuple[str, np.ndarray]]:
-    """Start configurations of Posture Control's search, with a label: for a top grasp the
-    wrist roll in steps (the arm's differential IK finds the nearest posture, which may keep a
-    finger on the wrong side of the block); for a lateral grasp the hand in its present shape
-    and in :data:`LATERAL_PINCH`, with the palm where it is and backed off along its axis."""
+    """Start configurations of a top grasp's Posture Control search, with a label: the wrist
+    roll in steps (the arm's differential IK finds the nearest posture, which may keep a finger
+    on the wrong side of the block)."""
     world = ep.world
     m = world.model
     roll_j = m.joint(robot.qualified("wrist_roll")).id
     roll_adr = m.jnt_qposadr[roll_j]
     lo, hi = m.jnt_range[roll_j]
-    hand_adr = HandIndices.of(m).finger_qpos.ravel()
     seeds = []
-    if ep.coarse.approach == "top":
-        for roll in ROLL_SEEDS:
-            seed = world.data.qpos.copy()
-            seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
-            seeds.append((f"wrist roll {np.degrees(roll):+.0f} deg", seed))
-        return seeds
+    for roll in ROLL_SEEDS:
+        seed = world.data.qpos.copy()
+        seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
+        seeds.append((f"wrist roll {np.degrees(roll):+.0f} deg", seed))
+    return seeds
+
+
+@dataclass(frozen=True)
+class LateralPose:
+    """A palm pose beside the block that a lateral search tries: the configuration (qpos, the
+    hand in :data:`LATERAL_PINCH`), the palm face's distance from the block (m) and a label."""
+
+    qpos: np.ndarray
+    gap: float
+    label: str
+
+
+def _lateral_poses(ep: Episode) -> list[LateralPose]:
+    """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
+    has five joints), hand y up as the coarse reach put it, turned LATERAL_ROLLS about the axis,
+    the palm face LATERAL_GAPS from the block's nearest point along the axis, at the coarse
+    reach's height, LATERAL_SHIFTS aside; in order of the gap."""
+    world = ep.world
+    m = world.model
+    hand_adr = HandIndices.of(m).finger_qpos.ravel()
     checker = CollisionChecker(world, model=ep.planning)
     arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
     q_arm = world.data.qpos[arm_adr]
-    p, R = checker.palm_pose(q_arm)
-    for back in LATERAL_BACKOFFS:
-        arm = checker.solve_ik(p - back * R[:, 2], R, q_arm)
-        if not arm.found:
-            continue
-        for label, hand in (("present hand", None), ("pinch", np.asarray(LATERAL_PINCH))):
-            seed = world.data.qpos.copy()
-            seed[arm_adr] = arm.q
-            if hand is not None:
-                seed[hand_adr] = hand
-            seeds.append((f"{label}, palm backed off {back * 100:.0f} cm", seed))
-    return seeds
+    base = np.asarray(robot_base_xy(ep))
+    centre = np.array([*ep.target.position_xy, ep.target.top_z - LATERAL_DEPTH])
+    axis = np.array([*(centre[:2] - base), 0.0])
+    axis /= np.linalg.norm(axis)
+    up = np.array([0.0, 0.0, np.sign(ep.coarse.goal.palm_rotation[2, 1]) or 1.0])
+    near = float(((ep.target.footprint() - centre[:2]) @ axis[:2]).min())
+    poses = []
+    for gap in LATERAL_GAPS:
+        for roll in LATERAL_ROLLS:
+            for shift in LATERAL_SHIFTS:
+                palm = centre + (near - gap) * axis + shift * np.cross(up, axis)
+                # the approach axis through the shifted palm is radial, as the arm has it
+                radial = np.array([*(palm[:2] - base), 0.0])
+                radial /= np.linalg.norm(radial)
+                y = np.cos(roll) * up + np.sin(roll) * np.cross(up, radial)
+                rot = np.column_stack([np.cross(y, radial), y, radial])
+                arm = checker.solve_ik(palm, rot, q_arm)
+                if not arm.found:
+                    continue
+                qpos = world.data.qpos.copy()
+                qpos[arm_adr] = arm.q
+                qpos[hand_adr] = np.asarray(LATERAL_PINCH)
+                label = (
+                    f"palm {gap * 100:.1f} cm from the block, {shift * 100:+.1f} cm aside, "
+                    f"rolled {np.degrees(roll):+.0f} deg"
+                )
+                poses.append(LateralPose(qpos, gap, label))
+    return poses
 
 
 #: A lateral pinch of the hand (ff, mf, rf, th; abduction, MCP, PIP, DIP, rad):
@@ -566,8 +830,61 @@ LATERAL_PINCH = (
     0.64, 1.05, 1.31, 0.18,
     -0.82, 0.55, 0.61, 1.15,
 )  # fmt: skip
-#: How far (m) a lateral Posture Control search backs the palm off its approach to start from.
-LATERAL_BACKOFFS = (0.0, 0.02)
+#: Lateral palm poses (:func:`_lateral_poses`): the approach axis horizontal and radial, the palm
+#: face LATERAL_GAPS (m) from the perceived block's nearest point along it, at the coarse reach's
+#: height (LATERAL_DEPTH below the top), LATERAL_SHIFTS (m) aside and hand y turned LATERAL_ROLLS
+#: (rad) from vertical about the approach axis (a roll moves the middle finger and the thumb off
+#: the block's centre line, towards the faces they take).
+LATERAL_GAPS = (0.03, 0.035, 0.04)
+LATERAL_ROLLS = tuple(np.deg2rad([0.0, 10.0, -10.0]))
+LATERAL_SHIFTS = (0.0, -0.008, 0.008)
+
+
+def _slides(ep: Episode) -> bool:
+    """Whether the contacts may slide up and down their faces: in a lateral grasp the finger row
+    is horizontal and the thumb below it, so the hand's shape, not a depth below the top, sets
+    each finger's height on the block (a top grasp keeps its fingers at the depth they reached)."""
+    return ep.coarse is not None and ep.coarse.approach == "lateral"
+
+
+def _samples(ep: Episode) -> FingerSamples | None:
+    """The sampled finger postures lateral reachability starts from (drawn once an episode)."""
+    if not _slides(ep):
+        return None
+    if ep.finger_samples is None:
+        ep.finger_samples = FingerSamples.draw(pad_normal_local=PAD_NORMAL_LOCAL)
+    return ep.finger_samples
+
+
+#: How far (m) past its contact a lateral grasp's fingertip must reach (SQUEEZE_REACH for a top
+#: grasp). A lateral squeeze runs along each finger's normal-squeeze direction, past the inside
+#: posture by extrapolation (controllers.grip.plan_grip, along_normal), so the reach only has to
+#: show that the pad gets into the face. Chosen by looking at the result: on single_rectangle
+#: --approach lateral --controller kb, seeds 0-9, 8 of 10 delivered with 4 mm, 5 of 10 with
+#: SQUEEZE_REACH's 6 mm (the fingers on the far contacts cannot reach 6 mm into the face).
+LATERAL_SQUEEZE_REACH = 0.004
+
+
+def _squeeze_reach(ep: Episode) -> float:
+    """How far past its contact each fingertip must reach in this cycle's grasp."""
+    return LATERAL_SQUEEZE_REACH if _slides(ep) else SQUEEZE_REACH
+
+
+def _slide_range(ep: Episode) -> tuple[float, float]:
+    """Heights (m) a sliding contact may take on the perceived block."""
+    return (ep.prism.bottom + BOTTOM_MARGIN, ep.prism.top - TOP_MARGIN)
+
+
+#: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose.
+LATERAL_TRIES = 2
+
+
+def _lateral_posture(ep: Episode):
+    """Lateral Posture Control: a palm pose beside the block from which the hand reaches the
+    current contacts (:func:`_lateral_search`): (qpos, contacts, label) or None."""
+    theta = ep.synthesis.theta
+    found = _lateral_search(ep, lambda pose: theta, reachable_only=True)
+    return None if found is None else found[:3]
 
 
 def _reachable_posture(ep: Episode):
@@ -577,9 +894,18 @@ def _reachable_posture(ep: Episode):
     m = world.model
     arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
     hand_adr = HandIndices.of(m).finger_qpos.ravel()
+    if _slides(ep):
+        return _lateral_posture(ep)
     for label, seed in _posture_seeds(ep):
         contacts, _ = reachable_contacts(
-            world, ep.prism, ep.target, ep.synthesis.theta, model=ep.planning, qpos=seed, tries=1
+            world,
+            ep.prism,
+            ep.target,
+            ep.synthesis.theta,
+            model=ep.planning,
+            qpos=seed,
+            tries=1,
+            slide=_slides(ep),
         )
         tips, centres = grip_targets(contacts.points, contacts.normals)
         sol = solve_posture(
@@ -592,6 +918,7 @@ def _reachable_posture(ep: Episode):
             fingers_may_touch=True,
             pad_centres=centres,
             qpos=seed,
+            slide=_slide_range(ep) if _slides(ep) else None,
         )
         if not sol.reachable:
             continue
@@ -608,6 +935,7 @@ def _reachable_posture(ep: Episode):
             model=ep.planning,
             qpos=qpos,
             check_spacing=False,
+            slide=_slides(ep),
         )
         if reach.reachable:
             return qpos, contacts, label
@@ -646,7 +974,15 @@ def wrench_closure(ep: Episode) -> Step:
             if syn.steps % REACH_CHECK_EVERY and not syn.done:
                 continue
         contacts, reach = reachable_contacts(
-            world, ep.prism, ep.target, syn.theta, model=ep.planning, check_spacing=syn.done
+            world,
+            ep.prism,
+            ep.target,
+            syn.theta,
+            model=ep.planning,
+            check_spacing=syn.done,
+            slide=_slides(ep),
+            samples=_samples(ep),
+            squeeze=_squeeze_reach(ep),
         )
         ep.contacts, ep.reach = contacts, reach
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
@@ -679,6 +1015,53 @@ def wrench_closure(ep: Episode) -> Step:
     )
 
 
+#: A lateral pre-shape moves the fingertips to their pre-contact positions along straight lines
+#: in PRESHAPE_WAYPOINTS steps, each a hand IK with collision avoidance.
+PRESHAPE_WAYPOINTS = 10
+PRESHAPE_IK_ITERATIONS = 40
+
+
+def _preshape(ep: Episode, q_pre: np.ndarray) -> None:
+    """Pre-shape the hand to ``q_pre`` for closing. In a lateral grasp the middle finger and the
+    thumb reach round the block's near corners, and a straight line in joint space from where
+    the fingers retracted to cuts through a corner: there the fingertips and pad centres move
+    along straight lines to where ``q_pre`` puts them, through PRESHAPE_WAYPOINTS hand IK
+    solutions that keep every link clear of the perceived block (collision avoidance), and the
+    hand then settles on ``q_pre``."""
+    world = ep.world
+    if _slides(ep):
+        m = ep.planning
+        tip_sites = [m.site(robot.qualified(s)).id for s in robot.FINGERTIP_SITES]
+        pad_sites = [m.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES]
+        hand_adr = HandIndices.of(m).finger_qpos.ravel()
+        data = mujoco.MjData(m)
+        data.qpos[:] = world.data.qpos
+        data.qpos[hand_adr] = q_pre
+        mujoco.mj_kinematics(m, data)
+        tips1, pads1 = data.site_xpos[tip_sites].copy(), data.site_xpos[pad_sites].copy()
+        qpos = world.data.qpos.copy()
+        qpos[hand_adr] = world.hand_targets()
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(m, data)
+        tips0, pads0 = data.site_xpos[tip_sites].copy(), data.site_xpos[pad_sites].copy()
+        for k in range(1, PRESHAPE_WAYPOINTS + 1):
+            s = k / PRESHAPE_WAYPOINTS
+            sol = solve_posture(
+                world,
+                tips0 + s * (tips1 - tips0),
+                optimize=False,
+                joints="hand",
+                model=m,
+                avoid_collisions=True,
+                pad_centres=pads0 + s * (pads1 - pads0),
+                qpos=qpos,
+                reach_iterations=PRESHAPE_IK_ITERATIONS,
+            )
+            qpos[hand_adr] = sol.hand_q
+            move_hand(world, sol.hand_q, PRESHAPE_TIME / PRESHAPE_WAYPOINTS)
+    move_hand(world, q_pre, PRESHAPE_TIME)
+
+
 def _contact_points(ep: Episode, theta: np.ndarray) -> np.ndarray:
     """World points (n, 3) of contacts ``theta`` on the perceived polygon, at the top's height
     less 3 cm (for drawing)."""
@@ -696,13 +1079,30 @@ def grasp_object(ep: Episode) -> Step:
     unit = ep.target.polygon.unit_moment()
     frames = unit.locate(contacts.theta)
     shares = grasp_score(frames.point, frames.normal).normal_forces
+    grip_force = GRIP_FORCE
+    if _slides(ep):
+        # the fingers' heights differ (the middle finger high, the thumb low): squeeze without
+        # tipping the block, no finger harder than GRIP_FORCE
+        shares = balanced_shares(contacts.points, contacts.normals, shares)
+        grip_force = GRIP_FORCE * float(shares.mean() / shares.max())
     _retract(ep)
     world.step(round(0.2 / world.model.opt.timestep))
     ep.empty_hand_force = world.wrist_wrench()[0]
     ep.grip = plan_grip(
-        world, contacts.points, contacts.normals, shares, model=ep.planning, prism=ep.prism
+        world,
+        contacts.points,
+        contacts.normals,
+        shares,
+        grip_force=grip_force,
+        model=ep.planning,
+        prism=ep.prism,
+        along_normal=_slides(ep),
+        # lateral: from the posture the reachability check found (a local IK from the retracted
+        # hand may turn a pad that reaches round a corner onto its side)
+        start=ep.reach.hand_q if _slides(ep) else None,
+        squeeze_reach=_squeeze_reach(ep),
     )
-    move_hand(world, ep.grip.q_pre, PRESHAPE_TIME)
+    _preshape(ep, ep.grip.q_pre)
     closing = close(world, ep.grip)
     if not closing.all_touched:
         missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
@@ -755,7 +1155,12 @@ def deliver(ep: Episode) -> Step:
     record.lift_slip = float(lifted.slip)
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
     load = held_load(world, ep.empty_hand_force)
-    if load < MIN_HELD_SHARE * ep.expected_load or (world.touch() <= 0.0).sum() > 1:
+    lost = world.touch() <= 0.0
+    if _slides(ep):
+        # a balanced lateral squeeze holds with two opposed pads; the others only touch lightly
+        # (balanced_shares) and may let go as the block settles in the grip
+        lost &= ep.grip.forces >= CARRYING_SHARE * ep.grip.forces.mean()
+    if load < MIN_HELD_SHARE * ep.expected_load or lost.sum() > 1:
         raise TaskFailedError(
             Failure.SLIPPED_DURING_LIFT,
             f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "

@@ -1,0 +1,191 @@
+"""The lateral grasp of section 5.2 (issue 9: "a lateral pre-shape that cannot grasp is a defect to
+fix"): the pieces it is built from, each checked against an independent computation, and a whole
+lateral episode on the rectangle judged physically."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from controllers.finger_samples import Criteria, FingerSamples
+from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
+from controllers.posture import HandIndices, solve_posture
+from controllers.reach import ReachTarget, goal_poses
+from fsm.run import main
+from hand_sim import robot
+from hand_sim.scene import load_scene
+from hand_sim.world import World
+
+
+@pytest.fixture(scope="module")
+def world() -> World:
+    return World.build(load_scene("single_rectangle"))
+
+
+@pytest.fixture(scope="module")
+def samples() -> FingerSamples:
+    return FingerSamples.draw(n=2000, seed=1)
+
+
+# --- sliding contact heights --------------------------------------------------------------------
+def test_sliding_targets_keep_their_place_and_take_the_fingertips_height(world: World) -> None:
+    """A contact on a vertical face is a vertical line: targets 5 cm above the fingertips are out
+    of the hand's reach with the arm held, but with their heights free to slide the fingertips
+    reach their horizontal places, at heights inside the range given."""
+    tips = world.fingertip_positions()
+    idx = HandIndices.of(world.model)
+    # each target a millimetre from its fingertip horizontally, 5 cm above it
+    goal = tips + np.array([0.001, -0.001, 0.05])
+    fixed = solve_posture(world, goal, optimize=False, joints="hand")
+    assert not fixed.reachable
+    lo, hi = tips[:, 2].min() - 0.02, tips[:, 2].max() + 0.01
+    slid = solve_posture(world, goal, optimize=False, joints="hand", slide=(lo, hi))
+    assert slid.reachable, slid.tip_error
+    assert slid.targets is not None
+    np.testing.assert_allclose(slid.targets[:, :2], goal[:, :2])
+    assert np.all((slid.targets[:, 2] >= lo) & (slid.targets[:, 2] <= hi))
+    # the targets are where the fingertips are (forward kinematics of the solution)
+    data = mujoco.MjData(world.model)
+    data.qpos[:] = world.data.qpos
+    data.qpos[idx.finger_qpos.ravel()] = slid.hand_q
+    mujoco.mj_kinematics(world.model, data)
+    reached = data.site_xpos[idx.tip_sites]
+    assert np.linalg.norm(reached - slid.targets, axis=1).max() < 1e-3
+
+
+# --- sampled finger postures --------------------------------------------------------------------
+def test_finger_samples_are_the_hands_forward_kinematics_in_the_palm_frame(
+    world: World, samples: FingerSamples
+) -> None:
+    again = FingerSamples.draw(n=2000, seed=1)
+    np.testing.assert_array_equal(again.q, samples.q)  # seeded
+    m = world.model
+    data = mujoco.MjData(m)
+    data.qpos[:] = world.data.qpos
+    idx = HandIndices.of(m)
+    palm = m.body(robot.hand_name(robot.PALM_BODY)).id
+    for i in (0, 17, 1999):
+        data.qpos[idx.finger_qpos.ravel()] = samples.q[i].ravel()
+        mujoco.mj_kinematics(m, data)
+        R, p = data.xmat[palm].reshape(3, 3), data.xpos[palm]
+        np.testing.assert_allclose(
+            (data.site_xpos[idx.tip_sites] - p) @ R, samples.tip[i], atol=1e-9
+        )
+
+
+def test_the_best_sample_takes_its_contact_and_none_takes_one_out_of_reach(
+    samples: FingerSamples,
+) -> None:
+    criteria = Criteria(0.003, np.deg2rad(90.0), 0.8, 0.2, 0.0015, 0.004)
+    far = lambda pts: np.full(pts.shape[:-1], 1.0)  # noqa: E731 - no block anywhere near
+    # a contact where sample 5's index fingertip is, the face turned against its pad
+    k = 5
+    n = -samples.pad[k, 0] * np.array([1.0, 1.0, 0.0])
+    n /= np.linalg.norm(n)
+    point = samples.tip[k, 0] + criteria.squeeze * n
+    q, score = samples.best(0, np.zeros(3), np.eye(3), point, n, (-1.0, 1.0), far, criteria)
+    assert q is not None and score < 1.0
+    j = int(np.flatnonzero(np.all(samples.q[:, 0] == q, axis=1))[0])
+    target = point - criteria.squeeze * n
+    off = samples.tip[j, 0] - target
+    assert np.linalg.norm(off[:2]) < criteria.tolerance  # on the vertical line (world z = up)
+    q, score = samples.best(
+        0, np.zeros(3), np.eye(3), point + np.array([0.5, 0.0, 0.0]), n, (-1.0, 1.0), far, criteria
+    )
+    assert q is None and score == np.inf
+
+
+# --- the squeeze --------------------------------------------------------------------------------
+def _net_wrench(points: np.ndarray, normals: np.ndarray, forces: np.ndarray) -> np.ndarray:
+    push = -normals * forces[:, None]
+    arm = points - points.mean(axis=0)
+    return np.concatenate([push.sum(axis=0), np.cross(arm, push).sum(axis=0)])
+
+
+def test_balanced_shares_balance_the_block_in_three_dimensions() -> None:
+    # the rectangle's pinch: first and middle finger on one long face, ring finger and thumb on
+    # the other, the middle finger high and the thumb low
+    n = np.array([[0, 1, 0], [0, 1, 0], [0, -1, 0], [0, -1, 0]], float)
+    level = np.array([[0.009, 0.012, 0.85], [-0.012, 0.012, 0.85], [0.009, -0.012, 0.85]])
+    level = np.vstack([level, [-0.012, -0.012, 0.85]])
+    planar = np.ones(4)  # opposed pairs: equal forces balance them in the plane
+    np.testing.assert_allclose(balanced_shares(level, n, planar), planar, atol=1e-6)
+    tall = level.copy()
+    tall[:, 2] = [0.842, 0.906, 0.85, 0.775]
+    assert np.abs(_net_wrench(tall, n, planar)[3:]).max() > 0.05  # the planar shares tip it
+    shares = balanced_shares(tall, n, planar)
+    assert shares.mean() == pytest.approx(1.0) and shares.min() >= 0.1 - 1e-9
+    assert np.abs(_net_wrench(tall, n, shares)).max() < 0.02
+    with pytest.raises(Exception, match="must be"):
+        balanced_shares(tall[:3], n, planar)
+
+
+def test_the_normal_squeeze_pushes_along_the_contact_normal(world: World) -> None:
+    """Servo torques K d along the squeeze direction d are those of a fingertip force along the
+    inward normal (J^T F = K d has F parallel to -n), and moving along d drives the fingertip
+    into the face."""
+    m = world.model
+    idx = HandIndices.of(m)
+    qpos = world.data.qpos.copy()
+    qpos[idx.finger_qpos.ravel()] = [0.0, 0.9, 0.7, 0.4] * 4
+    normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [-0.6, 0.8, 0], [0, 0, 1.0]])
+    direction, rate = normal_squeeze(m, qpos, normals)
+    data = mujoco.MjData(m)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(m, data)
+    mujoco.mj_comPos(m, data)
+    actuators = [m.actuator(robot.qualified(a)).id for a in robot.HAND_ACTUATORS]
+    kp = m.actuator_gainprm[actuators, 0]
+    jac = np.zeros((3, m.nv))
+    for f, site in enumerate(idx.tip_sites):
+        mujoco.mj_jacSite(m, data, jac, None, int(site))
+        J = jac[:, idx.finger_dofs[f]]
+        torque = kp[4 * f : 4 * f + 4] * direction[4 * f : 4 * f + 4]
+        force, *_ = np.linalg.lstsq(J.T, torque, rcond=None)
+        assert force @ -normals[f] / np.linalg.norm(force) > 0.999
+        assert rate[f] > 0
+    # backing off moves every fingertip out along its normal, to first order
+    before = data.site_xpos[idx.tip_sites].copy()
+    data.qpos[idx.finger_qpos.ravel()] = backed_off_hand(m, qpos, normals, 0.002)
+    mujoco.mj_kinematics(m, data)
+    out = np.einsum("fd,fd->f", data.site_xpos[idx.tip_sites] - before, normals)
+    np.testing.assert_allclose(out, 0.002, atol=3e-4)
+
+
+# --- the lateral approach -----------------------------------------------------------------------
+def test_the_lateral_goal_has_the_thumb_below(world: World) -> None:
+    target = ReachTarget.from_world(world, "rectangle")
+    ((_, rot),) = goal_poses(target, (-0.6, 0.0))["lateral"]
+    assert rot[2, 1] == pytest.approx(1.0)  # hand y (thumb to middle finger) points up
+    assert abs(rot[2, 2]) < 1e-9  # the approach axis horizontal
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path) -> None:
+    out = tmp_path / "lateral"
+    code = main(
+        [
+            "--scene",
+            "single_rectangle",
+            "--approach",
+            "lateral",
+            "--controller",
+            "kb",
+            "--seed",
+            str(seed),
+            "--out",
+            str(out),
+            "--no-record",
+        ]
+    )
+    s = json.loads((out / "summary.json").read_text())
+    assert code == 0 and s["success"], s["failure_detail"]
+    (cycle,) = s["cycles"]
+    assert cycle["approach"] == "lateral"
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
