@@ -555,16 +555,17 @@ def fine_reach_state(ep: Episode) -> Step:
 # --- Posture Control ----------------------------------------------------------------------------
 def _retract(ep: Episode) -> None:
     """Move every fingertip RETRACT straight out from the perceived block's nearest face, and
-    again (up to RETRACT_TRIES times in all) while any finger still touches the block: a finger
-    left on it would drag it when the palm backs away."""
+    again, each time RETRACT further (up to RETRACT_TRIES times in all), while any finger still
+    touches the block: a finger left on it (a thumb's middle link pressed on a face, say) would
+    drag it, or wedge it against the palm and lift it, when the palm backs away."""
     world = ep.world
     body = world.block_body_id(ep.target_name)
-    for _ in range(RETRACT_TRIES):
+    for k in range(RETRACT_TRIES):
         tips = world.fingertip_positions()
         out = project_to_surface(ep.target, tips, table_z=world.scene.table.height)
         sol = solve_posture(
             world,
-            tips + RETRACT * out.normals,
+            tips + (k + 1) * RETRACT * out.normals,
             optimize=False,
             joints="hand",
             model=ep.planning,
@@ -697,17 +698,21 @@ ROLL_SEEDS = tuple(np.deg2rad([0, 45, -45, 90, -90, 180]))
 MAX_PALM_TILT = {"top": np.deg2rad(12.0), "lateral": np.deg2rad(35.0)}
 
 
-def _regrasp_or_fail(ep: Episode) -> Step:
-    """After MAX_POSTURE_RETRIES the contacts stay out of reach: start again from Fine Reach with
+def _regrasp_or_fail(
+    ep: Episode, reason: str | None = None, failure: Failure = Failure.CONTACT_UNREACHABLE
+) -> Step:
+    """After MAX_POSTURE_RETRIES the contacts stay out of reach (or, from Grasp Object, a finger
+    missed the block as the hand closed): start again from Fine Reach with
     the hand turned (top grasp: the wrist rolled by the next of REGRASP_ROLLS) or moved (lateral:
     the pinch pre-shape at the next palm pose beside the block, :func:`_lateral_preshape`), so
-    the grasp controller starts from other contacts; after MAX_REGRASPS, fail with the
-    reason."""
+    the grasp controller starts from other contacts; after MAX_REGRASPS, fail with ``failure``
+    and the reason."""
     record = ep.record
-    reason = ep.reach.reason if ep.reach is not None else "unreachable"
+    if reason is None:
+        reason = ep.reach.reason if ep.reach is not None else "unreachable"
     if record.regrasps >= MAX_REGRASPS:
         raise TaskFailedError(
-            Failure.CONTACT_UNREACHABLE,
+            failure,
             f"after {MAX_REGRASPS} regrasps and {record.posture_retries} posture retries: {reason}",
         )
     if _slides(ep):
@@ -1181,8 +1186,10 @@ def grasp_object(ep: Episode) -> Step:
     closing = close(world, ep.grip)
     if not closing.all_touched:
         missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
-        raise TaskFailedError(
-            Failure.FINGERS_CANNOT_REACH, f"{', '.join(missing)} did not touch the block"
+        # open to the approach posture and regrasp (the fingers that touched only stopped there)
+        move_hand(world, ep.grip.q_pre, PRESHAPE_TIME)
+        return _regrasp_or_fail(
+            ep, f"{', '.join(missing)} did not touch the block", Failure.FINGERS_CANNOT_REACH
         )
     result = squeeze(world, ep.grip)
     ep.record.grip_forces = result.touch.round(3).tolist()
@@ -1193,10 +1200,12 @@ def grasp_object(ep: Episode) -> Step:
             for f, t, g in zip(robot.FINGERS, result.touch, result.target, strict=True)
             if t < 0.5 * g
         ]
-        raise TaskFailedError(
-            Failure.FINGERS_CANNOT_REACH,
+        move_hand(world, ep.grip.q_pre, PRESHAPE_TIME)  # open, and regrasp
+        return _regrasp_or_fail(
+            ep,
             f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
             f"{result.target.mean():.1f} N)",
+            Failure.FINGERS_CANNOT_REACH,
         )
     return Step(
         State.DELIVER,
