@@ -725,7 +725,7 @@ def _regrasp_or_fail(
             )
         record.posture_retries = 0
         ep.synthesis = ep.contacts = ep.reach = None
-        return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp: {done}")
+        return Step(State.FINE_REACH, f"regrasp ({reason}): {done}")
     world = ep.world
     checker = CollisionChecker(world, model=ep.planning)
     arm_now = world.arm_targets()
@@ -750,7 +750,7 @@ def _regrasp_or_fail(
     _reposition(ep, back.q if back.found else ik.q, np.asarray(ep.coarse.hand_q))
     record.posture_retries = 0
     ep.synthesis = ep.contacts = ep.reach = None
-    return Step(State.FINE_REACH, f"contacts out of reach ({reason}); regrasp with the {how}")
+    return Step(State.FINE_REACH, f"regrasp ({reason}) with the {how}")
 
 
 #: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned for each.
