@@ -26,6 +26,7 @@ from controllers.finger_samples import FingerSamples
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis, separate_contacts
 from controllers.grip import (
+    CONTROL_PERIOD,
     GRIP_FORCE,
     PRE_CONTACT,
     backed_off_hand,
@@ -118,10 +119,16 @@ MIN_HELD_SHARE = 0.5
 #: Pads that carry at least this share of the grip's mean force count for the lift's slip check
 #: in a lateral grasp.
 CARRYING_SHARE = 0.5
-#: A carried block counts as dropped when, over DROP_WINDOW control periods, the wrist sensor's
-#: mean load falls below DROP_SHARE of the block's expected weight, or fewer than two pads feel it.
+#: A carried block counts as dropped when, over DROP_WINDOW control periods, fewer than two pads
+#: feel it; after the carry, at rest, the wrist sensor must still show MIN_HELD_SHARE of its
+#: weight. (The wrist's load while the arm moves is not a drop sensor: the accelerometer at the
+#: wrist does not see the hand's rotational accelerations, and on clutter5's third block the
+#: estimate of a 0.5 N block fell below 0.15 N over 0.3 s while all four pads held it at 2-5 N.)
 DROP_WINDOW = 15
-DROP_SHARE = 0.3
+#: Place slots a later cycle tries when the hand cannot set its block down at the first.
+MAX_PLACE_SLOTS = 4
+#: Time (s) the hand holds still after the carry before the wrist sensor weighs the load.
+WEIGH_TIME = 0.3
 #: Gravity (m/s^2) for the perceived block's expected weight.
 G = 9.81
 
@@ -273,6 +280,7 @@ def select_model(ep: Episode) -> Step:
     footprints = _other_footprints(ep, index)
     radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
     ep.place = _place_for_cycle(ep, footprints, radius)
+    ep.place_footprints, ep.place_radius = footprints, radius
     record.place = (float(ep.place[0]), float(ep.place[1]))
     ep.others_before = {
         b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
@@ -1259,20 +1267,32 @@ def deliver(ep: Episode) -> Step:
         f"lifted: block rose {lifted.block_rise * 100:.1f} cm",
     )
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+    tried = [np.asarray(ep.place, dtype=float)]
+    # a slot this cycle chose (not the place asked for) may be free for the block but not for the
+    # hand around it: take the next free slot
+    while not plan.found and ep.cycle > 0 and len(tried) < MAX_PLACE_SLOTS:
+        taken = [t + 0.001 * np.array([[1.0, 0.0], [-0.5, 0.87], [-0.5, -0.87]]) for t in tried]
+        slot = _place_for_cycle(ep, [*ep.place_footprints, *taken], ep.place_radius)
+        log(
+            State.DELIVER.value,
+            State.DELIVER.value,
+            f"place slot {tried[-1].round(3).tolist()}: {plan.reason}; trying "
+            f"{slot.round(3).tolist()}",
+        )
+        ep.place = slot
+        record.place = (float(slot[0]), float(slot[1]))
+        tried.append(slot)
+        plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     if not plan.found:
         raise TaskFailedError(Failure.PLACE_UNREACHABLE, plan.reason)
 
-    loads: deque[float] = deque(maxlen=DROP_WINDOW)
     lost: deque[bool] = deque(maxlen=DROP_WINDOW)
 
     def watch(w) -> None:
-        """Sensed, not judged: the wrist sensor's load (averaged over the window, the arm's
-        accelerations shake it) and the pads."""
+        """Sensed, not judged: the pads (the wrist is weighed at rest, after the carry)."""
         record.lift_clearance = max(record.lift_clearance, clearance_now(w))
-        loads.append(held_load(w, ep.empty_hand_force))
         lost.append(int((w.touch() > 0.0).sum()) < 2)
-        full = len(loads) == DROP_WINDOW
-        if full and (np.mean(loads) < DROP_SHARE * ep.expected_load or all(lost)):
+        if len(lost) == DROP_WINDOW and all(lost):
             raise _DroppedError
 
     try:
@@ -1280,8 +1300,17 @@ def deliver(ep: Episode) -> Step:
     except _DroppedError as e:
         raise TaskFailedError(
             Failure.DROPPED_IN_TRANSPORT,
-            f"the wrist sensor lost the block's weight at t = {world.time:.2f} s",
+            f"fewer than two pads have felt the block since t = "
+            f"{world.time - DROP_WINDOW * CONTROL_PERIOD:.2f} s",
         ) from e
+    world.step(round(WEIGH_TIME / world.model.opt.timestep))
+    load = held_load(world, ep.empty_hand_force)
+    if load < MIN_HELD_SHARE * ep.expected_load:
+        raise TaskFailedError(
+            Failure.DROPPED_IN_TRANSPORT,
+            f"after the carry the hand holds {load:.2f} N of an expected "
+            f"{ep.expected_load:.2f} N (wrist sensor, at rest)",
+        )
     log(State.DELIVER.value, State.DELIVER.value, "carried to the place point; lowering")
     down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
     if not down.supported:

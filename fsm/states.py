@@ -89,7 +89,7 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.POSTURE_CONTROL,
             "fingertips near the block's surface (after Fine Reach) or contacts to make reachable "
             "(from Wrench Closure)",
-            8.0,
+            12.0,  # a repositioning: retract, back out, move, pre-shape, approach (up to ~8 s)
             (State.FINE_REACH, State.WRENCH_CLOSURE),
             (Failure.CONTACT_UNREACHABLE,),
         ),
