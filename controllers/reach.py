@@ -517,6 +517,8 @@ def execute_path(
 #: where the planned set-down ends (the last part is sensed: controllers.transport).
 LIFT_HEIGHT = 0.05
 SET_DOWN_HOVER = 0.02
+#: Clearance (m) the hand keeps from everything but the table all the way down to the hover.
+SET_DOWN_CLEARANCE = 0.003
 
 
 @dataclass(frozen=True, eq=False)
@@ -570,6 +572,12 @@ def plan_delivery(
     if not (np.isfinite(height) and height > 0):
         raise ReachError(f"block height must be a positive number of metres, got {block_height}")
     checker = CollisionChecker(world, clearance=clearance, hand_q=world.hand_qpos(), carried=block)
+    # the set-down's last 2 * clearance is exempt above (the block nears the table); the hand's
+    # links must still keep SET_DOWN_CLEARANCE from everything else all the way down (a finger's
+    # middle link landed on a block delivered before, clutter5's third cycle)
+    descent = CollisionChecker(
+        world, clearance=SET_DOWN_CLEARANCE, hand_q=world.hand_qpos(), carried=block
+    )
     q0 = world.arm_qpos()
     empty = np.stack([q0])
 
@@ -610,7 +618,12 @@ def plan_delivery(
         ok = h.found and d.found and not checker.collides(h.q)
         # the set-down may graze the table only in its last 2 * clearance
         near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
-        if ok and near.found and first_collision(checker, np.stack([h.q, near.q])) is None:
+        if (
+            ok
+            and near.found
+            and first_collision(checker, np.stack([h.q, near.q])) is None
+            and first_collision(descent, np.stack([h.q, d.q])) is None
+        ):
             high, down = h.q, d.q
             break
     if high is None or down is None:

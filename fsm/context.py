@@ -86,6 +86,10 @@ class Episode:
     cycles: list[CycleRecord] = field(default_factory=list)
     delivered: list[str] = field(default_factory=list)  #: scene names of delivered blocks
     place: NDArray[np.float64] | None = None
+    #: the other blocks' perceived footprints and the picked block's circumradius (m), for the
+    #: next place slot when the hand cannot set the block down at this cycle's first
+    place_footprints: list[NDArray[np.float64]] = field(default_factory=list)
+    place_radius: float = 0.0
     # Select/Model
     selection: Any | None = None  #: vision.Selection of the current view
     model: Any | None = None  #: vision.ObjectModel of the picked block

@@ -89,7 +89,7 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.POSTURE_CONTROL,
             "fingertips near the block's surface (after Fine Reach) or contacts to make reachable "
             "(from Wrench Closure)",
-            8.0,
+            12.0,  # a repositioning: retract, back out, move, pre-shape, approach (up to ~8 s)
             (State.FINE_REACH, State.WRENCH_CLOSURE),
             (Failure.CONTACT_UNREACHABLE,),
         ),
@@ -103,8 +103,8 @@ TRANSITIONS: dict[State, StateSpec] = {
         StateSpec(
             State.GRASP_OBJECT,
             "a converged grasp (S_G <= 0.4) whose contacts the hand reaches",
-            8.0,
-            (State.DELIVER,),
+            16.0,  # closing and squeezing take 3-5 s; a miss adds the regrasp's repositioning
+            (State.DELIVER, State.FINE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
         StateSpec(

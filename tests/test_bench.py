@@ -191,6 +191,25 @@ def test_wilson_interval_is_scipys(k: int, n: int) -> None:
     assert w.estimate == k / n
 
 
+@pytest.mark.parametrize("n", [1, 7, 29, 30, 31, 200, 997])
+def test_wilson_interval_contains_the_estimate_at_the_ends(n: int) -> None:
+    # every episode delivered (or none): p is an end of its interval, not a rounding error past it
+    for k in (0, n):
+        w = wilson_interval(k, n)
+        assert w.low <= w.estimate <= w.high
+    assert wilson_interval(n, n).high == 1.0 and wilson_interval(0, n).low == 0.0
+
+
+def test_report_of_a_run_where_every_episode_was_delivered(tmp_path: Path) -> None:
+    lines = [dict(line, success=True, failure=None) for line in _synthetic_lines()]
+    for line in lines:
+        line["cycles"] = [{"judgement": {"place_error_mm": 1.0 + line["seed"]}}]
+        append_line(tmp_path / "results.jsonl", line)
+    write_report(tmp_path, lines, {"scene": "random", "controller": "pi", "approach": "auto"})
+    check_report(tmp_path)  # 10 of 10, "No episode failed."
+    assert (tmp_path / FIGURES["success"]).stat().st_size > 0
+
+
 def test_wilson_interval_textbook_value() -> None:
     # 0 successes in 10: the Wilson upper bound is 0.2775 (z = 1.96)
     assert wilson_interval(0, 10).high == pytest.approx(0.27753, abs=1e-5)
