@@ -3,7 +3,7 @@ down, at one of a few wrist yaws, and the fingers on the contacts by the hand's 
 
 The physical grasp study (:mod:`controllers.physics_study`) tests many grasps of one block; it
 needs each grasp placed quickly and the same way every time, not the task cycle's reach, so:
-- the palm is held :data:`PALM_GAP` above the block's top, palm down (a top grasp), turned about
+- the palm is held :data:`PALM_GAPS` above the block's top, palm down (a top grasp), turned about
   the vertical to one of :data:`YAWS` equally spaced yaws; the arm's IK
   (:meth:`controllers.cspace.CollisionChecker.solve_ik`) gives each posture once per block;
 - at each, the fingers are pre-shaped with their tips on the block's faces at the task cycle's
@@ -13,13 +13,17 @@ needs each grasp placed quickly and the same way every time, not the task cycle'
   task cycle's finger-to-contact rule (:func:`controllers.hand_reach.finger_contacts`), and the
   first :data:`POSTURES_TRIED` are checked with the task cycle's reachability test
   (:func:`controllers.hand_reach.reachable_contacts`: pad spacing, hand IK, pad angle, link
-  penetration). The first reachable one places the hand; when none is, the grasp is unreachable
-  with the nearest posture's reason.
+  penetration), each finger's IK starting from the sampled finger posture that takes its
+  contact best (:class:`controllers.finger_samples.FingerSamples`, as the task cycle's palm-pose
+  search does: the local IK from the pre-shape alone turns most pads onto their sides). The
+  first reachable one places the hand; when none is, the grasp is unreachable with the nearest
+  posture's reason.
 Nothing here moves the simulation; the study sets the arm and hand where this says.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import mujoco
@@ -28,7 +32,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.fine_reach import GRASP_DEPTH, project_to_surface
+from controllers.finger_samples import FingerSamples
 from controllers.hand_reach import (
+    PAD_NORMAL_LOCAL,
     FingerContacts,
     HandReach,
     PerceivedPrism,
@@ -42,14 +48,15 @@ from controllers.reach import PRESHAPE, ReachTarget
 from hand_sim import robot
 from hand_sim.world import World
 
-#: Height (m) of the palm face (the ``palm_center`` site) above the block's top: contacts are
-#: taken 4 cm below the top (the task cycle's grasp depth), and with the palm higher the fingers
-#: run out of flexion on a 5 cm block.
-PALM_GAP = 0.005
+#: Heights (m) of the palm face (the ``palm_center`` site) above the block's top: contacts are
+#: taken 4 cm below the top (the task cycle's grasp depth). Chosen by looking at the quick run
+#: (trapezoid, irregular hexagon, 24 grasps): 0 of 24 placed with 5 mm alone, 4 with 2 cm alone,
+#: 0 with 4 cm (the fingers run out of flexion or turn their pads away).
+PALM_GAPS = (0.005, 0.02)
 #: Wrist yaws (equally spaced over a turn) the palm may take over the block.
 YAWS = 12
 #: Hand postures checked per grasp (nearest first), and finger assignments per posture.
-POSTURES_TRIED = 4
+POSTURES_TRIED = 12
 ASSIGNMENTS_TRIED = 2
 #: Arm IK seed (shoulder, elbow, wrist pitch, wrist roll) of a palm-down posture over the table;
 #: the waist is turned towards the block.
@@ -84,7 +91,11 @@ def _palm_down(yaw: float) -> NDArray[np.float64]:
 
 
 def top_postures(
-    world: World, target: ReachTarget, *, palm_gap: float = PALM_GAP, yaws: int = YAWS
+    world: World,
+    target: ReachTarget,
+    *,
+    palm_gaps: tuple[float, ...] = PALM_GAPS,
+    yaws: int = YAWS,
 ) -> list[HandPosture]:
     """The palm-down postures over ``target`` (those the arm's IK reaches), from the world's
     current state; each hand pre-shaped with its fingertips on the block's faces."""
@@ -98,10 +109,10 @@ def top_postures(
     base = world.data.xpos[
         mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
     ]
-    pos = np.array([*target.position_xy, target.top_z + palm_gap])
-    waist = float(np.arctan2(pos[1] - base[1], pos[0] - base[0]))
+    waist = float(np.arctan2(target.position_xy[1] - base[1], target.position_xy[0] - base[0]))
     out = []
-    for k in range(yaws):
+    for gap, k in itertools.product(palm_gaps, range(yaws)):
+        pos = np.array([*target.position_xy, target.top_z + gap])
         yaw = target.yaw + 2.0 * np.pi * k / yaws
         ik = checker.solve_ik(pos, _palm_down(yaw), [waist, *ARM_SEED])
         if not ik.found:
@@ -131,15 +142,19 @@ def place_hand(
     *,
     tries: int = POSTURES_TRIED,
     assignments: int = ASSIGNMENTS_TRIED,
+    samples: FingerSamples | None = None,
 ) -> Placement:
     """The first of the ``tries`` postures nearest to contacts ``theta`` (contact coordinates on
-    ``target``'s polygon) from which the hand reaches them (see the module docstring)."""
+    ``target``'s polygon) from which the hand reaches them (see the module docstring);
+    ``samples``: the sampled finger postures (default: drawn with their fixed seed)."""
     if not postures:
         return Placement(
             False, "the arm reaches no palm-down posture over the block", None, None, None
         )
     th = np.asarray(theta, dtype=float)
     table_z = prism.bottom
+    if samples is None:
+        samples = FingerSamples.draw(pad_normal_local=PAD_NORMAL_LOCAL)
 
     def distance(p: HandPosture) -> float:
         given = finger_contacts(target, th, p.tips, table_z)
@@ -149,7 +164,7 @@ def place_hand(
     first: Placement | None = None
     for p in ranked[:tries]:
         contacts, reach = reachable_contacts(
-            world, prism, target, th, qpos=p.qpos, tries=assignments
+            world, prism, target, th, qpos=p.qpos, tries=assignments, samples=samples
         )
         placed = Placement(reach.reachable, reach.reason, p, contacts, reach)
         if reach.reachable:

@@ -32,12 +32,13 @@ import numpy as np
 
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
+from controllers.finger_samples import FingerSamples
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import CONTROL_PERIOD, close, plan_grip, squeeze
 from controllers.hand_placement import HandPosture, place_hand, top_postures
-from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism
+from controllers.hand_reach import MIN_PAD_SPACING, PAD_NORMAL_LOCAL, PerceivedPrism
 from controllers.posture import HandIndices
 from controllers.reach import ReachTarget
 from controllers.transport import lift
@@ -165,6 +166,7 @@ class StudyWorld:
     prism: PerceivedPrism
     postures: list[HandPosture]
     checker: CollisionChecker
+    samples: FingerSamples  #: sampled finger postures, the hand IK's starts (drawn once)
 
     @classmethod
     def of(cls, obj: str) -> StudyWorld:
@@ -172,7 +174,15 @@ class StudyWorld:
         name = world.scene.target
         target = ReachTarget.from_world(world, name)
         prism = PerceivedPrism.of(target, world.scene.table.height)
-        return cls(world, name, target, prism, top_postures(world, target), CollisionChecker(world))
+        return cls(
+            world,
+            name,
+            target,
+            prism,
+            top_postures(world, target),
+            CollisionChecker(world),
+            FingerSamples.draw(pad_normal_local=PAD_NORMAL_LOCAL),
+        )
 
 
 def _set_robot(world: World, qpos: np.ndarray, hand_q: np.ndarray) -> None:
@@ -283,11 +293,11 @@ def test_grasp(
     out.theta = [round(float(t), 6) for t in syn.theta]
     out.steps, out.converged = syn.steps, bool(syn.converged)
     out.s_g = float(score.s_g) if score.feasible else None
-    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures)
+    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures, samples=sw.samples)
     if not placed.reachable:
         out.result, out.reason = "unreachable", placed.reason
         return out
-    assert placed.posture is not None and placed.contacts is not None
+    assert placed.posture is not None and placed.contacts is not None and placed.reach is not None
     out.palm_yaw = round(placed.posture.yaw, 6)
     unit = sw.target.polygon.unit_moment()
     frames = unit.locate(placed.contacts.theta)
@@ -295,8 +305,15 @@ def test_grasp(
     shares = lp.normal_forces if lp.feasible else np.ones(4)
     try:
         _set_robot(world, placed.posture.qpos, placed.posture.qpos[_hand_adr(world)])
+        # the grip's IK from the hand posture the reachability check found (from the pre-shape
+        # the local IK may turn a pad onto its side)
         grip = plan_grip(
-            world, placed.contacts.points, placed.contacts.normals, shares, prism=sw.prism
+            world,
+            placed.contacts.points,
+            placed.contacts.normals,
+            shares,
+            prism=sw.prism,
+            start=placed.reach.hand_q,
         )
         _set_robot(world, placed.posture.qpos, grip.q_pre)
         world.step(round(PLACE_SETTLE / world.model.opt.timestep))
