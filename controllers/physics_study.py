@@ -5,10 +5,12 @@ One grasp, start to end (:func:`test_grasp`):
 1. synthesis: a :class:`~controllers.grasp.session.GraspSynthesis` (KB, QL or PI, section 3.6)
    from four contacts drawn uniformly in theta, run to convergence or its step limit, with the
    task cycle's pad spacing (``min_separation``); its S_G is the verdict under test;
-2. placement (:mod:`controllers.hand_placement`): the arm holds the palm down over the block at
-   the nearest reachable wrist yaw, the fingers' pre-contact postures from
-   :func:`controllers.grip.plan_grip`; the arm and hand are set there (not driven: the approach
-   is not under test) and the servos hold them. A grasp no posture reaches is *unreachable*;
+2. placement (:mod:`controllers.hand_placement`): the task cycle's Posture Control (arm and hand
+   IK) started from palm-down postures over the block finds an arm posture, palm within 12 deg
+   of vertical, from which the task cycle's reach test passes; the fingers' pre-contact postures
+   from :func:`controllers.grip.plan_grip`. The arm and hand are set there (not driven: the
+   approach is not under test) and the servos hold them. A grasp no start reaches is
+   *unreachable*;
 3. the task cycle's Grasp Object: :func:`~controllers.grip.close` with the touch guard, then
    :func:`~controllers.grip.squeeze` to :data:`controllers.grip.GRIP_FORCE` per finger, shared as
    the S_G LP's normal forces. A finger that never touches makes the grasp *not closed* (counted
@@ -32,13 +34,12 @@ import numpy as np
 
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
-from controllers.finger_samples import FingerSamples
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import CONTROL_PERIOD, close, plan_grip, squeeze
 from controllers.hand_placement import HandPosture, place_hand, top_postures
-from controllers.hand_reach import MIN_PAD_SPACING, PAD_NORMAL_LOCAL, PerceivedPrism
+from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism
 from controllers.posture import HandIndices
 from controllers.reach import ReachTarget
 from controllers.transport import lift
@@ -90,7 +91,8 @@ class GraspOutcome:
     #: never touched), "sim error" (MuJoCo went unstable)
     result: str = ""
     reason: str = ""
-    palm_yaw: float | None = None
+    palm_yaw: float | None = None  #: of the palm's x axis about the vertical
+    palm_tilt: float | None = None  #: of the palm's approach axis from vertical
     squeeze_settled: bool = False
     grip_force: list[float] = field(default_factory=list)
     failed_stage: str = ""
@@ -166,7 +168,6 @@ class StudyWorld:
     prism: PerceivedPrism
     postures: list[HandPosture]
     checker: CollisionChecker
-    samples: FingerSamples  #: sampled finger postures, the hand IK's starts (drawn once)
 
     @classmethod
     def of(cls, obj: str) -> StudyWorld:
@@ -181,7 +182,6 @@ class StudyWorld:
             prism,
             top_postures(world, target),
             CollisionChecker(world),
-            FingerSamples.draw(pad_normal_local=PAD_NORMAL_LOCAL),
         )
 
 
@@ -293,20 +293,20 @@ def test_grasp(
     out.theta = [round(float(t), 6) for t in syn.theta]
     out.steps, out.converged = syn.steps, bool(syn.converged)
     out.s_g = float(score.s_g) if score.feasible else None
-    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures, samples=sw.samples)
+    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker)
     if not placed.reachable:
         out.result, out.reason = "unreachable", placed.reason
         return out
-    assert placed.posture is not None and placed.contacts is not None and placed.reach is not None
-    out.palm_yaw = round(placed.posture.yaw, 6)
+    assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
+    assert placed.yaw is not None and placed.tilt is not None
+    out.palm_yaw, out.palm_tilt = round(placed.yaw, 6), round(placed.tilt, 6)
     unit = sw.target.polygon.unit_moment()
     frames = unit.locate(placed.contacts.theta)
     lp = grasp_score(frames.point, frames.normal)
     shares = lp.normal_forces if lp.feasible else np.ones(4)
     try:
-        _set_robot(world, placed.posture.qpos, placed.posture.qpos[_hand_adr(world)])
-        # the grip's IK from the hand posture the reachability check found (from the pre-shape
-        # the local IK may turn a pad onto its side)
+        _set_robot(world, placed.qpos, placed.qpos[_hand_adr(world)])
+        # the grip's IK from the hand posture the reachability check found (as the task cycle)
         grip = plan_grip(
             world,
             placed.contacts.points,
@@ -315,7 +315,7 @@ def test_grasp(
             prism=sw.prism,
             start=placed.reach.hand_q,
         )
-        _set_robot(world, placed.posture.qpos, grip.q_pre)
+        _set_robot(world, placed.qpos, grip.q_pre)
         world.step(round(PLACE_SETTLE / world.model.opt.timestep))
         closing = close(world, grip)
         if not closing.all_touched:
