@@ -10,9 +10,19 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
+from controllers.cspace import PALM_SITE
+from controllers.hand_placement import MAX_PALM_TILT, place_hand
+from controllers.hand_reach import (
+    CONTACT_TOLERANCE,
+    MAX_PAD_ANGLE,
+    fingertips_at,
+    grip_targets,
+    pad_normals,
+)
 from controllers.physics_report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
 from controllers.physics_study import (
     MAX_SHIFT,
@@ -24,6 +34,7 @@ from controllers.physics_study import (
     physical_test,
     run_job,
 )
+from controllers.posture import HandIndices
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -84,6 +95,31 @@ def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> No
     [alone] = run_job(Job(obj, PAPER_OBJECTS.index(obj), "pi", 2, (1,), 0))
     [pooled] = [r for r in results if (r["object"], r["controller"], r["index"]) == (obj, "pi", 1)]
     assert alone == pooled
+
+
+def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() -> None:
+    """The grasp the old fixed-palm placement never reached (one contact per face: two fingers
+    would take faces their pads turn away from), checked by the kinematics, not the verdict."""
+    sw = StudyWorld.of("square")
+    theta = sw.target.polygon.normal_angle  # the middle of every face
+    assert len({round(float(t), 6) for t in theta}) == 4
+    placed = place_hand(sw.world, sw.prism, sw.target, theta, sw.postures, checker=sw.checker)
+    assert placed.reachable, placed.reason
+    assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
+    assert sorted(placed.contacts.contact_of_finger) == [0, 1, 2, 3]
+    assert placed.tilt is not None and placed.tilt <= MAX_PALM_TILT
+    model = sw.world.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = placed.qpos
+    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
+    mujoco.mj_kinematics(model, data)
+    palm_z = data.site_xmat[model.site(PALM_SITE).id].reshape(3, 3)[:, 2]
+    assert np.degrees(np.arccos(-palm_z[2])) <= np.degrees(MAX_PALM_TILT) + 1e-6
+    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
+    error = np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
+    assert error.max() <= CONTACT_TOLERANCE
+    cosine = -np.einsum("fd,fd->f", pad_normals(model, data), placed.contacts.normals)
+    assert np.all(cosine >= np.cos(MAX_PAD_ANGLE))
 
 
 def test_a_block_the_hand_does_not_hold_is_dropped_when_the_table_goes() -> None:
