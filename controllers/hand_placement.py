@@ -1,0 +1,269 @@
+"""Put the hand on synthesized contacts without the task cycle: a top grasp whose arm posture is
+found by the task cycle's Posture Control, started from palm-down postures held over the block.
+
+The physical grasp study (:mod:`controllers.physics_study`) tests many grasps of one block; it
+needs each grasp placed quickly and the same way every time, not the task cycle's reach, so:
+- **seeds**: the palm held :data:`PALM_GAPS` above the block's top, palm down (a top grasp),
+  turned about the vertical to one of :data:`YAWS` equally spaced yaws; the arm's IK
+  (:meth:`controllers.cspace.CollisionChecker.solve_ik`) gives each posture once per block, the
+  fingers pre-shaped with their tips on the block's faces at the task cycle's grasp depth
+  (:func:`controllers.fine_reach.project_to_surface`, what Fine Reach does);
+- **which seed, which finger on which contact**: every seed with every one of the 24 ways to
+  give the four contacts to the four fingers, ranked first by whether each pad, at the seed's
+  pre-shape, faces its contact's face within the reach test's :data:`MAX_PAD_ANGLE`, then by
+  the task cycle's reach cost (total squared fingertip-to-contact distance, each contact at its
+  fingertip's height). The task cycle's rule (the nearest assignment only, ranked by distance)
+  gives a finger a face its pad turns away from on most evenly spread grasps (a square with one
+  contact per face); see docs/physics_study.md for the counts;
+- **Posture Control** (as the task cycle's ``fsm.handlers._reachable_posture`` does for a top
+  grasp): from each of the first :data:`SEEDS_TRIED` (seed, assignment) pairs, arm and hand IK
+  (:func:`controllers.posture.solve_posture`, ``joints="arm+hand"``, collision avoidance with
+  the fingers allowed to touch the block, fingertips :data:`SQUEEZE_REACH` inside each contact
+  and pads facing it, :func:`controllers.hand_reach.grip_targets`); a posture that tilts the
+  palm more than :data:`MAX_PALM_TILT` from vertical is refused (the task cycle's limit for a
+  top grasp); the contacts are then confirmed from that posture with the task cycle's
+  reachability test (:func:`controllers.hand_reach.reachable_contacts`: pad spacing, hand IK,
+  pad angle, link penetration). The first confirmed posture places the hand; when none is, the
+  grasp is unreachable with the last reason.
+Nothing here moves the simulation; the study sets the arm and hand where this says.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.cspace import CollisionChecker
+from controllers.fine_reach import GRASP_DEPTH, project_to_surface
+from controllers.hand_reach import (
+    BOTTOM_MARGIN,
+    MAX_PAD_ANGLE,
+    TOP_MARGIN,
+    FingerContacts,
+    HandReach,
+    PerceivedPrism,
+    fingertips_at,
+    grip_targets,
+    pad_normals,
+    reachable_contacts,
+)
+from controllers.posture import HandIndices, solve_posture
+from controllers.reach import PRESHAPE, ReachTarget
+from hand_sim import robot
+from hand_sim.blocks import GEOM_SUFFIX
+from hand_sim.world import World
+
+#: Heights (m) of the palm face (the ``palm_center`` site) above the block's top in the seed
+#: postures: contacts are taken 4 cm below the top (the task cycle's grasp depth).
+PALM_GAPS = (0.005, 0.02)
+#: Wrist yaws (equally spaced over a turn) the seed postures take over the block.
+YAWS = 12
+#: (seed posture, finger assignment) pairs Posture Control starts from per grasp, best first.
+#: Chosen by looking at the result: on 5 grasps x 3 controllers of six objects (90 grasps, seed
+#: 0) 6 placed 76, 12 placed 77 at about twice the time of a grasp no pair places.
+SEEDS_TRIED = 6
+#: Largest tilt (rad) of the palm's approach axis from vertical (the task cycle's limit for a
+#: top grasp, fsm.handlers.MAX_PALM_TILT["top"]).
+MAX_PALM_TILT = np.deg2rad(12.0)
+#: Arm IK seed (shoulder, elbow, wrist pitch, wrist roll) of a palm-down posture over the table;
+#: the waist is turned towards the block.
+ARM_SEED = (0.3, 1.5, 1.3, 0.0)
+#: The 24 ways to give four contacts to four fingers: row k gives finger f contact ORDERS[k, f].
+ORDERS = np.array(list(itertools.permutations(range(4))))
+
+
+@dataclass(frozen=True, eq=False)
+class HandPosture:
+    """The arm holding the palm over the block at ``yaw``, the hand pre-shaped on its faces."""
+
+    yaw: float  #: rad, palm yaw about the vertical
+    qpos: NDArray[np.float64]  #: full world qpos (arm, hand; the rest as the world has it)
+    tips: NDArray[np.float64]  #: (4, 3) fingertip positions there
+    pads: NDArray[np.float64]  #: (4, 3) pad normals (out of the pad) there
+
+
+@dataclass(frozen=True, eq=False)
+class Placement:
+    """Where the hand takes a grasp: ``reachable`` with the configuration found (``qpos``: arm
+    from Posture Control, hand from the reach test), the palm's yaw and tilt there, the seed it
+    started from and the fingers' contacts; or not, with the reason."""
+
+    reachable: bool
+    reason: str
+    qpos: NDArray[np.float64] | None = None
+    yaw: float | None = None  #: rad, of the palm's x axis about the vertical
+    tilt: float | None = None  #: rad, of the palm's approach axis from vertical
+    seed: HandPosture | None = None
+    contacts: FingerContacts | None = None
+    reach: HandReach | None = None
+
+
+def _palm_down(yaw: float) -> NDArray[np.float64]:
+    """Palm rotation: z down, x turned by ``yaw`` about the vertical."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag([1.0, -1.0, -1.0])
+
+
+def _indices(model: mujoco.MjModel) -> tuple[list[int], NDArray[np.int_]]:
+    arm = [model.jnt_qposadr[model.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    return arm, HandIndices.of(model).finger_qpos.ravel()
+
+
+def top_postures(
+    world: World,
+    target: ReachTarget,
+    *,
+    palm_gaps: tuple[float, ...] = PALM_GAPS,
+    yaws: int = YAWS,
+) -> list[HandPosture]:
+    """The palm-down seed postures over ``target`` (those the arm's IK reaches), from the world's
+    current state; each hand pre-shaped with its fingertips on the block's faces."""
+    if yaws < 1:
+        raise ValueError(f"yaws must be >= 1, got {yaws}")
+    model = world.model
+    checker = CollisionChecker(world, hand_q=PRESHAPE)
+    arm_adr, hand_adr = _indices(model)
+    base = world.data.xpos[
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
+    ]
+    waist = float(np.arctan2(target.position_xy[1] - base[1], target.position_xy[0] - base[0]))
+    data = mujoco.MjData(model)
+    out = []
+    for gap, k in itertools.product(palm_gaps, range(yaws)):
+        pos = np.array([*target.position_xy, target.top_z + gap])
+        yaw = target.yaw + 2.0 * np.pi * k / yaws
+        ik = checker.solve_ik(pos, _palm_down(yaw), [waist, *ARM_SEED])
+        if not ik.found:
+            continue
+        qpos = world.data.qpos.copy()
+        qpos[arm_adr] = ik.q
+        qpos[hand_adr] = PRESHAPE
+        # the preshape's tips, raised (or lowered) to the grasp depth below the top
+        at_depth = fingertips_at(model, qpos)
+        at_depth[:, 2] = target.top_z - GRASP_DEPTH
+        surface = project_to_surface(target, at_depth, table_z=world.scene.table.height)
+        tips, centres = grip_targets(surface.points, surface.normals, 0.0)
+        hand = solve_posture(
+            world, tips, optimize=False, joints="hand", qpos=qpos, pad_centres=centres
+        )
+        qpos[hand_adr] = hand.hand_q
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        out.append(
+            HandPosture(float(yaw), qpos, fingertips_at(model, qpos), pad_normals(model, data))
+        )
+    return out
+
+
+def _contacts_on(
+    target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """World xy (4, 2) and outward normals (4, 2) of contacts ``theta`` on ``target``, and the
+    height (4,) finger f takes a contact at: its fingertip's, kept between the table and the
+    top by the reach test's margins (the task cycle's rule, :func:`hand_reach.finger_contacts`)."""
+    frames = target.polygon.locate(theta)
+    c, s = np.cos(target.yaw), np.sin(target.yaw)
+    R = np.array([[c, -s], [s, c]])
+    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
+    return frames.point @ R.T + np.asarray(target.position_xy), frames.normal @ R.T, z
+
+
+def _given(
+    theta: NDArray[np.float64],
+    xy: NDArray[np.float64],
+    nxy: NDArray[np.float64],
+    z: NDArray[np.float64],
+    order: NDArray[np.int_],
+) -> FingerContacts:
+    """Finger f on contact ``order[f]``, at finger f's height ``z[f]``."""
+    return FingerContacts(
+        np.column_stack([xy[order], z]),
+        np.column_stack([nxy[order], np.zeros(len(order))]),
+        theta[order],
+        tuple(int(i) for i in order),
+    )
+
+
+def ranked_starts(
+    target: ReachTarget, theta: ArrayLike, postures: list[HandPosture], table_z: float
+) -> list[tuple[HandPosture, FingerContacts]]:
+    """Every (seed posture, contacts given to its fingers) pair, best first: the pairs whose
+    every pad faces its contact's face within :data:`MAX_PAD_ANGLE` at the seed's pre-shape
+    before the others, then by total squared fingertip-to-contact distance."""
+    th = np.asarray(theta, dtype=float)
+    keys, pairs = [], []
+    for i, p in enumerate(postures):
+        xy, nxy, z = _contacts_on(target, th, p.tips, table_z)
+        points = np.concatenate(
+            [xy[ORDERS], np.broadcast_to(z[None, :, None], (len(ORDERS), 4, 1))], axis=2
+        )
+        distance = ((points - p.tips[None]) ** 2).sum(axis=(1, 2))
+        # cosine between each pad normal and its contact's inward (horizontal) face normal
+        cosine = -np.einsum("kfd,fd->kf", nxy[ORDERS], p.pads[:, :2])
+        turned_away = (cosine < np.cos(MAX_PAD_ANGLE)).any(axis=1)
+        for k in range(len(ORDERS)):
+            keys.append((bool(turned_away[k]), float(distance[k])))
+            pairs.append((i, k, xy, nxy, z))
+    out = []
+    for j in sorted(range(len(keys)), key=keys.__getitem__):
+        i, k, xy, nxy, z = pairs[j]
+        out.append((postures[i], _given(th, xy, nxy, z, ORDERS[k])))
+    return out
+
+
+def place_hand(
+    world: World,
+    prism: PerceivedPrism,
+    target: ReachTarget,
+    theta: ArrayLike,
+    postures: list[HandPosture],
+    *,
+    seeds: int = SEEDS_TRIED,
+    checker: CollisionChecker | None = None,
+) -> Placement:
+    """Posture Control from the first ``seeds`` of :func:`ranked_starts` for contacts ``theta``
+    (contact coordinates on ``target``'s polygon); see the module docstring. ``checker``: the
+    world's collision checker, for the palm's pose (default: built here)."""
+    if not postures:
+        return Placement(False, "the arm reaches no palm-down posture over the block")
+    th = np.asarray(theta, dtype=float)
+    model = world.model
+    checker = CollisionChecker(world) if checker is None else checker
+    arm_adr, hand_adr = _indices(model)
+    touchable = world.scene.target + GEOM_SUFFIX
+    reason = "no start tried"
+    for seed, given in ranked_starts(target, th, postures, prism.bottom)[:seeds]:
+        tips, centres = grip_targets(given.points, given.normals)
+        sol = solve_posture(
+            world,
+            tips,
+            joints="arm+hand",
+            avoid_collisions=True,
+            touchable=touchable,
+            fingers_may_touch=True,
+            pad_centres=centres,
+            qpos=seed.qpos,
+        )
+        if not sol.reachable:
+            reason = f"Posture Control: {', '.join(sol.unreachable)} cannot reach"
+            continue
+        _, R = checker.palm_pose(sol.arm_q)
+        tilt = float(np.arccos(np.clip(-R[2, 2], -1.0, 1.0)))
+        if tilt > MAX_PALM_TILT:
+            reason = f"Posture Control tilts the palm {np.degrees(tilt):.0f} deg from vertical"
+            continue
+        qpos = seed.qpos.copy()
+        qpos[arm_adr] = sol.arm_q
+        qpos[hand_adr] = sol.hand_q
+        # the fingertips are on the contacts now: the nearest assignment is the one given
+        contacts, reach = reachable_contacts(world, prism, target, th, qpos=qpos, tries=1)
+        if not reach.reachable:
+            reason = reach.reason
+            continue
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+        return Placement(True, "", qpos, yaw, tilt, seed, contacts, reach)
+    return Placement(False, reason)

@@ -1,0 +1,374 @@
+"""The physical grasp study end to end: grasps on a process pool, the ROC of S_G as a predictor of
+a physical hold, the report and its figures (``python -m controllers.grasp physics``).
+
+ROC and AUC are computed here with numpy (no scikit-learn): the AUC is the Mann-Whitney
+probability that a held grasp has a lower S_G than a dropped one (ties count one half); an
+infeasible S_G counts as the worst. The best-separating threshold maximises Youden's J = TPR - FPR
+over the observed S_G values, predicting "holds" for S_G <= threshold.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from controllers.grasp.files import write_bytes, write_text
+from controllers.grasp.objects import PAPER_OBJECTS
+from controllers.physics_study import (
+    DIRECTIONS,
+    FORCE_TIME,
+    LIFT_HEIGHT,
+    MAX_SHIFT,
+    MAX_TURN,
+    PAPER_THRESHOLD,
+    Job,
+    run_job,
+)
+
+#: Controllers of the study (section 3.6.1, 3.6.2, section 4 with the general predictor).
+CONTROLLERS: tuple[str, ...] = ("kb", "ql", "pi")
+#: Grasps per process task (one world and one set of hand postures per task).
+CHUNK = 10
+#: The quick version (tests): two objects, few grasps.
+QUICK_OBJECTS = ("trapezoid", "irregular_hexagon")
+QUICK_GRASPS = 4
+#: Pictures of grasps S_G calls good that physics drops.
+PICTURES = 4
+
+
+@dataclass(frozen=True)
+class Roc:
+    """ROC of "S_G <= t predicts a hold" over the tested grasps."""
+
+    fpr: np.ndarray
+    tpr: np.ndarray
+    thresholds: np.ndarray
+    auc: float
+    best_threshold: float
+    best_j: float
+    positives: int
+    negatives: int
+
+
+def sg_for_ranking(s_g: Sequence[float | None]) -> np.ndarray:
+    """S_G with an infeasible grasp (None) as +inf."""
+    return np.array([np.inf if s is None else float(s) for s in s_g])
+
+
+def auc_mann_whitney(held: np.ndarray, dropped: np.ndarray) -> float:
+    """P(S_G of a held grasp < S_G of a dropped one) + 0.5 P(equal), from ranks."""
+    from scipy.stats import rankdata
+
+    n1, n0 = len(held), len(dropped)
+    if n1 == 0 or n0 == 0:
+        return float("nan")
+    ranks = rankdata(np.concatenate([-held, -dropped]))  # higher rank = lower S_G
+    u = ranks[:n1].sum() - n1 * (n1 + 1) / 2.0
+    return float(u / (n1 * n0))
+
+
+def roc(s_g: Sequence[float | None], held: Sequence[bool]) -> Roc:
+    """The ROC curve, AUC and best (Youden) threshold; see the module docstring."""
+    s = sg_for_ranking(s_g)
+    y = np.asarray(held, dtype=bool)
+    pos, neg = int(y.sum()), int((~y).sum())
+    finite = np.unique(s[np.isfinite(s)])
+    thresholds = np.concatenate([[-np.inf], finite, [np.inf]])
+    tpr = np.array([(s[y] <= t).sum() / max(pos, 1) for t in thresholds])
+    fpr = np.array([(s[~y] <= t).sum() / max(neg, 1) for t in thresholds])
+    j = tpr - fpr
+    k = int(np.argmax(j[1:-1])) + 1 if len(thresholds) > 2 else 0
+    return Roc(
+        fpr,
+        tpr,
+        thresholds,
+        auc_mann_whitney(s[y], s[~y]),
+        float(thresholds[k]),
+        float(j[k]),
+        pos,
+        neg,
+    )
+
+
+def rates_at(s_g: Sequence[float | None], held: Sequence[bool], t: float) -> tuple[float, float]:
+    """(TPR, FPR) of "S_G <= t predicts a hold"."""
+    s = sg_for_ranking(s_g)
+    y = np.asarray(held, dtype=bool)
+    tp = float((s[y] <= t).mean()) if y.any() else float("nan")
+    fp = float((s[~y] <= t).mean()) if (~y).any() else float("nan")
+    return tp, fp
+
+
+def jobs_for(objects: Sequence[str], grasps: int, seed: int) -> list[Job]:
+    out = []
+    for obj in objects:
+        o_index = PAPER_OBJECTS.index(obj)
+        for ci, ctrl in enumerate(CONTROLLERS):
+            for start in range(0, grasps, CHUNK):
+                idx = tuple(range(start, min(grasps, start + CHUNK)))
+                out.append(Job(obj, o_index, ctrl, ci, idx, seed))
+    return out
+
+
+def run_study(
+    objects: Sequence[str], grasps: int, seed: int, workers: int = 2, progress=None
+) -> list[dict]:
+    """Every grasp, in a fixed order (object, controller, index) whatever the workers."""
+    jobs = jobs_for(objects, grasps, seed)
+    results: list[list[dict]] = [[] for _ in jobs]
+    if workers <= 1:
+        for k, job in enumerate(jobs):
+            results[k] = run_job(job)
+            if progress is not None:
+                progress(len(results[k]))
+    else:
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Pool(min(workers, len(jobs))) as pool:
+            for k, res in enumerate(pool.imap(run_job, jobs)):
+                results[k] = res
+                if progress is not None:
+                    progress(len(res))
+    return [r for chunk in results for r in chunk]
+
+
+def _pct(a: int, b: int) -> str:
+    return f"{a} / {b} ({100.0 * a / b:.0f} %)" if b else "0 / 0"
+
+
+def summary_tables(results: list[dict], objects: Sequence[str]) -> str:
+    """Markdown tables: outcomes per controller, held rate per controller and object."""
+    lines = [
+        "| controller | grasps | S_G <= 0.4 | unreachable | not closed | sim error | tested "
+        "| held (of tested) | held among S_G <= 0.4 |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for c in CONTROLLERS:
+        rs = [r for r in results if r["controller"] == c]
+        if not rs:
+            continue
+        tested = [r for r in rs if r["result"] in ("held", "dropped")]
+        good = [r for r in tested if r["s_g"] is not None and r["s_g"] <= PAPER_THRESHOLD]
+        ok = sum(r["s_g"] is not None and r["s_g"] <= PAPER_THRESHOLD for r in rs)
+        lines.append(
+            f"| {c} | {len(rs)} | {ok} | {sum(r['result'] == 'unreachable' for r in rs)} "
+            f"| {sum(r['result'] == 'not closed' for r in rs)} "
+            f"| {sum(r['result'] == 'sim error' for r in rs)} | {len(tested)} "
+            f"| {_pct(sum(r['result'] == 'held' for r in tested), len(tested))} "
+            f"| {_pct(sum(r['result'] == 'held' for r in good), len(good))} |"
+        )
+    lines += ["", "Held / tested per object and controller (unreachable in brackets):", ""]
+    lines += ["| object | " + " | ".join(CONTROLLERS) + " |", "|---|" + "---:|" * len(CONTROLLERS)]
+    for o in objects:
+        cells = []
+        for c in CONTROLLERS:
+            rs = [r for r in results if r["controller"] == c and r["object"] == o]
+            tested = [r for r in rs if r["result"] in ("held", "dropped")]
+            held = sum(r["result"] == "held" for r in tested)
+            unr = sum(r["result"] in ("unreachable", "not closed") for r in rs)
+            cells.append(f"{held} / {len(tested)} ({unr})")
+        lines.append(f"| {o} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def roc_figure(r: Roc, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.5, 4.5), dpi=110)
+    ax.plot(r.fpr, r.tpr, drawstyle="steps-post", label=f"S_G, AUC {r.auc:.3f}")
+    ax.plot([0, 1], [0, 1], color="grey", lw=0.8, ls="--", label="chance")
+    ax.set_xlabel("false positive rate (dropped, S_G <= t)")
+    ax.set_ylabel("true positive rate (held, S_G <= t)")
+    ax.set_title(
+        f"S_G as a predictor of a physical hold\n{r.positives} held, {r.negatives} dropped"
+    )
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def sg_histogram(results: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tested = [r for r in results if r["result"] in ("held", "dropped")]
+    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=110)
+    bins = np.linspace(0, 1.0, 41)
+    for label, colour in (("held", "tab:green"), ("dropped", "tab:red")):
+        s = [min(r["s_g"], 1.0) for r in tested if r["result"] == label and r["s_g"] is not None]
+        ax.hist(s, bins=bins, alpha=0.6, color=colour, label=f"{label} ({len(s)})")
+    ax.axvline(PAPER_THRESHOLD, color="k", ls="--", lw=0.8, label="paper's 0.4")
+    ax.set_xlabel("S_G (Eq. 13; 1.0 = 1.0 or more)")
+    ax.set_ylabel("grasps")
+    ax.legend()
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def render_grasp(entry: dict, seed: int, path: Path) -> bool:
+    """Re-run one grasp (deterministic) and save a picture: the grasp after the squeeze beside
+    the moment the test lost it. False when the re-run does not reproduce the drop."""
+    import mujoco
+
+    frames: dict[str, np.ndarray] = {}
+    job = Job(
+        entry["object"],
+        PAPER_OBJECTS.index(entry["object"]),
+        entry["controller"],
+        CONTROLLERS.index(entry["controller"]),
+        (entry["index"],),
+        seed,
+    )
+    renderer: list = []
+
+    def snap(stage: str, world) -> None:
+        if not renderer:
+            renderer.append(mujoco.Renderer(world.model, 360, 480))
+        cam = mujoco.MjvCamera()
+        b = world.block_body_id(world.scene.target)
+        cam.lookat[:] = world.data.xpos[b]
+        cam.distance, cam.azimuth, cam.elevation = 0.42, 135.0, -30.0
+        renderer[0].update_scene(world.data, camera=cam)
+        frames[stage] = renderer[0].render().copy()
+
+    try:
+        again = run_job(job, snapshot=snap)[0]
+    finally:
+        if renderer:
+            renderer[0].close()
+    if again["result"] != entry["result"] or "grasp" not in frames or len(frames) < 2:
+        return False
+    import cv2
+
+    lost = next(k for k in frames if k != "grasp")
+    left = cv2.putText(
+        frames["grasp"][:, :, ::-1].copy(),
+        "squeezed",
+        (10, 25),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.7,
+        (255, 255, 255),
+        2,
+    )
+    right = cv2.putText(
+        frames[lost][:, :, ::-1].copy(),
+        f"lost under {lost}",
+        (10, 25),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.7,
+        (255, 255, 255),
+        2,
+    )
+    ok, png = cv2.imencode(".png", np.hstack([left, right]))
+    if ok:
+        write_bytes(path, png.tobytes())
+    return bool(ok)
+
+
+def write_report(
+    out: Path,
+    results: list[dict],
+    objects: Sequence[str],
+    grasps: int,
+    seed: int,
+    command: str,
+    seconds: float,
+    pictures: int = PICTURES,
+) -> dict:
+    """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures."""
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "results.jsonl", "".join(json.dumps(r) + "\n" for r in results))
+    tested = [r for r in results if r["result"] in ("held", "dropped")]
+    s_g = [r["s_g"] for r in tested]
+    held = [r["result"] == "held" for r in tested]
+    curve = roc(s_g, held)
+    tpr04, fpr04 = rates_at(s_g, held, PAPER_THRESHOLD)
+    tprb, fprb = rates_at(s_g, held, curve.best_threshold)
+    if tested:
+        roc_figure(curve, out / "roc.png")
+        sg_histogram(results, out / "sg_hist.png")
+    false_pos = [
+        r
+        for r in tested
+        if r["result"] == "dropped" and r["s_g"] is not None and r["s_g"] <= PAPER_THRESHOLD
+    ]
+    drawn = []
+    for r in false_pos[:pictures]:
+        name = f"dropped_{r['object']}_{r['controller']}_{r['index']}.png"
+        if render_grasp(r, seed, out / name):
+            drawn.append((name, r))
+    summary = {
+        "command": command,
+        "objects": list(objects),
+        "grasps": grasps,
+        "seed": seed,
+        "seconds": round(seconds, 1),
+        "tested": len(tested),
+        "held": int(sum(held)),
+        "auc": curve.auc,
+        "best_threshold": curve.best_threshold,
+        "best_j": curve.best_j,
+        "tpr_fpr_at_0.4": [tpr04, fpr04],
+        "tpr_fpr_at_best": [tprb, fprb],
+        "false_positives": len(false_pos),
+    }
+    write_text(out / "summary.json", json.dumps(summary, indent=1) + "\n")
+    stages = ", ".join(f"{d}" for d, _ in DIRECTIONS)
+    md = [
+        "# The physical grasp study: S_G against MuJoCo",
+        "",
+        f"Command: `{command}` ({seconds:.0f} s wall). Seed {seed}; {grasps} grasps per object "
+        "and controller.",
+        "",
+        f"Test: block hanging in the hand (table collisions off), m*g along {stages}, "
+        f"{FORCE_TIME:g} s each, then a {LIFT_HEIGHT * 100:.0f} cm lift; held = the block stays "
+        f"within {MAX_SHIFT * 100:.0f} cm and {np.degrees(MAX_TURN):.0f} deg of its pose in the "
+        "palm's frame throughout.",
+        "",
+        summary_tables(results, objects),
+        "",
+        "## S_G as a predictor (tested grasps)",
+        "",
+        f"AUC {curve.auc:.3f} ({curve.positives} held, {curve.negatives} dropped). "
+        f"Best-separating threshold (Youden J = {curve.best_j:.3f}): S_G <= "
+        f"{curve.best_threshold:.3f}, TPR {tprb:.3f}, FPR {fprb:.3f}; the paper's 0.4: "
+        f"TPR {tpr04:.3f}, FPR {fpr04:.3f}.",
+        "",
+        "![ROC](roc.png)",
+        "",
+        "![S_G of held and dropped grasps](sg_hist.png)",
+        "",
+        f"## Grasps S_G calls good (<= 0.4) that physics drops: {len(false_pos)}",
+        "",
+    ]
+    md += [
+        "| object | controller | grasp | S_G | lost under | shift (cm) | turn (deg) |",
+        "|---|---|---:|---:|---|---:|---:|",
+    ]
+    for r in false_pos:
+        st = r["failed_stage"]
+        md.append(
+            f"| {r['object']} | {r['controller']} | {r['index']} | {r['s_g']:.3f} | {st} "
+            f"| {r['shift'].get(st, float('nan')) * 100:.1f} "
+            f"| {np.degrees(r['turn'].get(st, float('nan'))):.1f} |"
+        )
+    for name, r in drawn:
+        md += ["", f"![{r['object']} {r['controller']} {r['index']}]({name})"]
+    write_text(out / "report.md", "\n".join(md) + "\n")
+    return summary

@@ -1,0 +1,367 @@
+"""Does S_G (Eq. 13) predict a physical grasp? Grasps synthesized by the paper's controllers,
+taken by the simulated hand and tested in MuJoCo (issue 12, part 2).
+
+One grasp, start to end (:func:`test_grasp`):
+1. synthesis: a :class:`~controllers.grasp.session.GraspSynthesis` (KB, QL or PI, section 3.6)
+   from four contacts drawn uniformly in theta, run to convergence or its step limit, with the
+   task cycle's pad spacing (``min_separation``); its S_G is the verdict under test;
+2. placement (:mod:`controllers.hand_placement`): the task cycle's Posture Control (arm and hand
+   IK) started from palm-down postures over the block finds an arm posture, palm within 12 deg
+   of vertical, from which the task cycle's reach test passes; the fingers' pre-contact postures
+   from :func:`controllers.grip.plan_grip`. The arm and hand are set there (not driven: the
+   approach is not under test) and the servos hold them. A grasp no start reaches is
+   *unreachable*;
+3. the task cycle's Grasp Object: :func:`~controllers.grip.close` with the touch guard, then
+   :func:`~controllers.grip.squeeze` to :data:`controllers.grip.GRIP_FORCE` per finger, shared as
+   the S_G LP's normal forces. A finger that never touches makes the grasp *not closed* (counted
+   with the unreachable ones, not as a drop);
+4. the physical test: the table's collisions are switched off (the block hangs in the hand), an
+   external force of m*g on the block's centre of mass (``data.xfrc_applied``) along +x, -x, +y,
+   -y, +z and -z (world axes), :data:`FORCE_TIME` each, then a :data:`LIFT_HEIGHT` lift of the
+   palm with the arm (:func:`controllers.transport.lift`). The block's pose is measured in the
+   palm's frame against its pose at the end of the squeeze; the grasp *holds* when it never
+   moves more than :data:`MAX_SHIFT` nor turns more than :data:`MAX_TURN` (the first stage that
+   exceeds either ends the test).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import mujoco
+import numpy as np
+
+from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
+from controllers.grasp.registry import make_composer
+from controllers.grasp.score import grasp_score
+from controllers.grasp.session import GraspSynthesis
+from controllers.grip import CONTROL_PERIOD, close, plan_grip, squeeze
+from controllers.hand_placement import HandPosture, place_hand, top_postures
+from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism
+from controllers.posture import HandIndices
+from controllers.reach import ReachTarget
+from controllers.transport import lift
+from hand_sim import robot
+from hand_sim.errors import SimulationError
+from hand_sim.scene import load_scene
+from hand_sim.world import World
+
+#: The task cycle's extra spacing of the controller's contacts (fsm: SEPARATION_MARGIN, m).
+SEPARATION_MARGIN = 0.002
+#: Duration (s) of each external force, its directions (world axes) and the lift (m).
+FORCE_TIME = 2.0
+DIRECTIONS: tuple[tuple[str, tuple[float, float, float]], ...] = (
+    ("+x", (1.0, 0.0, 0.0)),
+    ("-x", (-1.0, 0.0, 0.0)),
+    ("+y", (0.0, 1.0, 0.0)),
+    ("-y", (0.0, -1.0, 0.0)),
+    ("+z", (0.0, 0.0, 1.0)),
+    ("-z", (0.0, 0.0, -1.0)),
+)
+LIFT_HEIGHT = 0.10
+#: Settling (s) after the arm and hand are set in place, and after the table is taken away (the
+#: block's weight alone: judged like a stage, called "hang").
+PLACE_SETTLE = 0.2
+HANG_TIME = 0.3
+#: A grasp holds while the block stays within these of its pose at the end of the squeeze, in the
+#: palm's frame (m, rad).
+MAX_SHIFT = 0.02
+MAX_TURN = np.deg2rad(10.0)
+#: S_G threshold of a successful grasp (section 3.6: S_G <= 0.4).
+PAPER_THRESHOLD = 0.4
+#: Stages of the physical test, in order.
+STAGES: tuple[str, ...] = ("hang", *(d for d, _ in DIRECTIONS), "lift")
+
+
+@dataclass
+class GraspOutcome:
+    """One grasp of the study. Lengths in m, angles in rad, forces in N."""
+
+    object: str
+    controller: str
+    index: int
+    theta_initial: list[float]
+    theta: list[float] = field(default_factory=list)  #: final contact coordinates
+    steps: int = 0
+    converged: bool = False
+    s_g: float | None = None  #: None: the S_G LP is infeasible
+    #: "held", "dropped", "unreachable" (no posture reaches the contacts), "not closed" (a finger
+    #: never touched), "sim error" (MuJoCo went unstable)
+    result: str = ""
+    reason: str = ""
+    palm_yaw: float | None = None  #: of the palm's x axis about the vertical
+    palm_tilt: float | None = None  #: of the palm's approach axis from vertical
+    squeeze_settled: bool = False
+    grip_force: list[float] = field(default_factory=list)
+    failed_stage: str = ""
+    #: per stage reached: the largest shift and turn of the block in the palm's frame
+    shift: dict[str, float] = field(default_factory=dict)
+    turn: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def tested(self) -> bool:
+        return self.result in ("held", "dropped")
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def grasp_seed(seed: int, obj: int, controller: int, index: int) -> np.random.Generator:
+    """The generator of one grasp: the same whatever process runs it."""
+    return np.random.default_rng([seed, obj, controller, index])
+
+
+def _palm_frame(world: World) -> tuple[np.ndarray, np.ndarray]:
+    b = world.model.body(robot.hand_name(robot.PALM_BODY)).id
+    return world.data.xpos[b].copy(), world.data.xmat[b].reshape(3, 3).copy()
+
+
+def _block_in_palm(world: World, name: str) -> tuple[np.ndarray, np.ndarray]:
+    p, R = _palm_frame(world)
+    b = world.block_body_id(name)
+    x = world.data.xpos[b]
+    Rb = world.data.xmat[b].reshape(3, 3)
+    return R.T @ (x - p), R.T @ Rb
+
+
+def _turn(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+class _Table:
+    """Switch the table's collisions off and back on (the block then hangs in the hand)."""
+
+    def __init__(self, world: World) -> None:
+        m = world.model
+        self.model = m
+        self.geoms = [
+            g
+            for g in range(m.ngeom)
+            if m.body(m.geom_bodyid[g]).name.startswith("table/")
+            and (m.geom_contype[g] or m.geom_conaffinity[g])
+        ]
+        self.saved = (m.geom_contype[self.geoms].copy(), m.geom_conaffinity[self.geoms].copy())
+
+    def off(self) -> None:
+        self.model.geom_contype[self.geoms] = 0
+        self.model.geom_conaffinity[self.geoms] = 0
+
+    def on(self) -> None:
+        self.model.geom_contype[self.geoms] = self.saved[0]
+        self.model.geom_conaffinity[self.geoms] = self.saved[1]
+
+
+#: Called with (stage name, world) at the end of the squeeze ("grasp") and of every stage.
+Snapshot = Callable[[str, World], None]
+
+
+@dataclass
+class StudyWorld:
+    """One block's world with its hand postures, reused for every grasp of that block."""
+
+    world: World
+    name: str
+    target: ReachTarget
+    prism: PerceivedPrism
+    postures: list[HandPosture]
+    checker: CollisionChecker
+
+    @classmethod
+    def of(cls, obj: str) -> StudyWorld:
+        world = World.build(load_scene(f"single_{obj}"))
+        name = world.scene.target
+        target = ReachTarget.from_world(world, name)
+        prism = PerceivedPrism.of(target, world.scene.table.height)
+        return cls(
+            world,
+            name,
+            target,
+            prism,
+            top_postures(world, target),
+            CollisionChecker(world),
+        )
+
+
+def _set_robot(world: World, qpos: np.ndarray, hand_q: np.ndarray) -> None:
+    """Arm and hand at ``qpos``'s arm and ``hand_q``, at rest, the servos holding them."""
+    m = world.model
+    arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
+    hand_adr = HandIndices.of(m).finger_qpos.ravel()
+    world.data.qpos[arm_adr] = qpos[arm_adr]
+    world.data.qpos[hand_adr] = hand_q
+    world.data.qvel[:] = 0.0
+    world.set_arm_targets(qpos[arm_adr])
+    world.set_hand_targets(hand_q)
+    mujoco.mj_forward(m, world.data)
+
+
+def _stage(
+    world: World, name: str, seconds: float, ref: tuple[np.ndarray, np.ndarray], out: GraspOutcome
+) -> bool:
+    """Step for ``seconds`` tracking the block's pose against ``ref``; False once it is lost."""
+    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    worst_shift = worst_turn = 0.0
+    for _ in range(max(1, round(seconds / CONTROL_PERIOD))):
+        world.step(steps)
+        x, R = _block_in_palm(world, out_name(world))
+        worst_shift = max(worst_shift, float(np.linalg.norm(x - ref[0])))
+        worst_turn = max(worst_turn, _turn(ref[1], R))
+        if worst_shift > MAX_SHIFT or worst_turn > MAX_TURN:
+            break
+    out.shift[name] = round(worst_shift, 5)
+    out.turn[name] = round(worst_turn, 5)
+    return worst_shift <= MAX_SHIFT and worst_turn <= MAX_TURN
+
+
+def out_name(world: World) -> str:
+    """The block of a single-block scene."""
+    return world.scene.target
+
+
+def physical_test(
+    sw: StudyWorld, grip, out: GraspOutcome, snapshot: Snapshot | None = None
+) -> None:
+    """Step 4 of the module docstring on a squeezed grasp; fills ``out``."""
+    world = sw.world
+    ref = _block_in_palm(world, sw.name)
+    if snapshot is not None:
+        snapshot("grasp", world)
+    body = world.block_body_id(sw.name)
+    weight = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
+    table = _Table(world)
+    table.off()
+    try:
+        held = _stage(world, "hang", HANG_TIME, ref, out)
+        if snapshot is not None and not held:
+            snapshot("hang", world)
+        for label, direction in DIRECTIONS:
+            if not held:
+                break
+            world.data.xfrc_applied[body, :3] = weight * np.asarray(direction)
+            held = _stage(world, label, FORCE_TIME, ref, out)
+            world.data.xfrc_applied[body, :] = 0.0
+            if snapshot is not None and not held:
+                snapshot(label, world)
+        if held:
+            try:
+                lift(world, sw.checker, sw.name, grip, height=LIFT_HEIGHT)
+            except ReachError as e:
+                out.result, out.reason = "unreachable", f"lift: {e}"
+                return
+            x, R = _block_in_palm(world, sw.name)
+            out.shift["lift"] = round(float(np.linalg.norm(x - ref[0])), 5)
+            out.turn["lift"] = round(_turn(ref[1], R), 5)
+            held = out.shift["lift"] <= MAX_SHIFT and out.turn["lift"] <= MAX_TURN
+            if snapshot is not None and not held:
+                snapshot("lift", world)
+    finally:
+        world.data.xfrc_applied[body, :] = 0.0
+        table.on()
+    out.result = "held" if held else "dropped"
+    if not held:
+        out.failed_stage = next(s for s in STAGES if s in out.shift and not _ok(out, s))
+
+
+def _ok(out: GraspOutcome, stage: str) -> bool:
+    return out.shift[stage] <= MAX_SHIFT and out.turn[stage] <= MAX_TURN
+
+
+def test_grasp(
+    sw: StudyWorld,
+    composer,
+    rng: np.random.Generator,
+    out: GraspOutcome,
+    snapshot: Snapshot | None = None,
+) -> GraspOutcome:
+    """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``."""
+    world = sw.world
+    world.reset()
+    syn = GraspSynthesis(
+        sw.target.polygon,
+        composer,
+        out.theta_initial,
+        rng,
+        min_separation=MIN_PAD_SPACING + SEPARATION_MARGIN,
+        separation_offset=robot.PAD_RADIUS,
+    )
+    while not syn.done:
+        syn.step()
+    score = syn.finish()
+    out.theta = [round(float(t), 6) for t in syn.theta]
+    out.steps, out.converged = syn.steps, bool(syn.converged)
+    out.s_g = float(score.s_g) if score.feasible else None
+    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker)
+    if not placed.reachable:
+        out.result, out.reason = "unreachable", placed.reason
+        return out
+    assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
+    assert placed.yaw is not None and placed.tilt is not None
+    out.palm_yaw, out.palm_tilt = round(placed.yaw, 6), round(placed.tilt, 6)
+    unit = sw.target.polygon.unit_moment()
+    frames = unit.locate(placed.contacts.theta)
+    lp = grasp_score(frames.point, frames.normal)
+    shares = lp.normal_forces if lp.feasible else np.ones(4)
+    try:
+        _set_robot(world, placed.qpos, placed.qpos[_hand_adr(world)])
+        # the grip's IK from the hand posture the reachability check found (as the task cycle)
+        grip = plan_grip(
+            world,
+            placed.contacts.points,
+            placed.contacts.normals,
+            shares,
+            prism=sw.prism,
+            start=placed.reach.hand_q,
+        )
+        _set_robot(world, placed.qpos, grip.q_pre)
+        world.step(round(PLACE_SETTLE / world.model.opt.timestep))
+        closing = close(world, grip)
+        if not closing.all_touched:
+            missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
+            out.result, out.reason = "not closed", f"{', '.join(missing)} did not touch"
+            return out
+        sq = squeeze(world, grip)
+        out.squeeze_settled = bool(sq.settled)
+        out.grip_force = [round(float(f), 3) for f in sq.touch]
+        physical_test(sw, grip, out, snapshot)
+    except SimulationError as e:
+        out.result, out.reason = "sim error", str(e)
+    return out
+
+
+def _hand_adr(world: World) -> np.ndarray:
+    return HandIndices.of(world.model).finger_qpos.ravel()
+
+
+@dataclass(frozen=True)
+class Job:
+    """A chunk of grasps of one object and controller (a unit of work for one process)."""
+
+    obj: str
+    obj_index: int
+    controller: str
+    controller_index: int
+    indices: tuple[int, ...]
+    seed: int
+
+
+def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
+    """The grasp's initial contacts (uniform in theta) and the generator that then feeds the
+    controller's noise."""
+    rng = grasp_seed(job.seed, job.obj_index, job.controller_index, index)
+    return [float(t) for t in rng.uniform(0.0, 2.0 * np.pi, 4)], rng
+
+
+def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
+    """Every grasp of ``job``, as JSON-ready dicts, in index order."""
+    sw = StudyWorld.of(job.obj)
+    composer = make_composer(job.controller)
+    out = []
+    for i in job.indices:
+        theta0, rng = initial_contacts(job, i)
+        o = GraspOutcome(job.obj, job.controller, i, theta0)
+        test_grasp(sw, composer, rng, o, snapshot)
+        out.append(o.to_json())
+    return out

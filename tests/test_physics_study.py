@@ -1,0 +1,155 @@
+"""The physical grasp study (issue 12, part 2): the quick run end to end, the physical test's
+verdicts against the block's measured motion, the ROC against an independent count, seeds."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from controllers.cspace import PALM_SITE
+from controllers.hand_placement import MAX_PALM_TILT, place_hand
+from controllers.hand_reach import (
+    CONTACT_TOLERANCE,
+    MAX_PAD_ANGLE,
+    fingertips_at,
+    grip_targets,
+    pad_normals,
+)
+from controllers.physics_report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
+from controllers.physics_study import (
+    MAX_SHIFT,
+    MAX_TURN,
+    STAGES,
+    GraspOutcome,
+    Job,
+    StudyWorld,
+    physical_test,
+    run_job,
+)
+from controllers.posture import HandIndices
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    return subprocess.run(
+        [sys.executable, "-m", "controllers.grasp", "physics", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory) -> tuple[Path, list[dict], dict]:
+    out = tmp_path_factory.mktemp("physics") / "run"
+    run = _cli("--out", str(out), "--quick", "--workers", "2")
+    assert run.returncode == 0, run.stderr
+    results = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    return out, results, json.loads((out / "summary.json").read_text())
+
+
+def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -> None:
+    out, results, summary = quick
+    assert len(results) == len(QUICK_OBJECTS) * 3 * QUICK_GRASPS
+    keys = {(r["object"], r["controller"], r["index"]) for r in results}
+    assert len(keys) == len(results)
+    outcomes = {r["result"] for r in results}
+    assert outcomes <= {"held", "dropped", "unreachable", "not closed", "sim error"}
+    tested = [r for r in results if r["result"] in ("held", "dropped")]
+    assert tested, "no grasp of the quick run reached the physical test"
+    for r in tested:
+        assert len(r["grip_force"]) == 4 and min(r["grip_force"]) > 0.0  # every pad pressed
+        if r["result"] == "held":  # every stage run, none beyond the limits
+            assert set(r["shift"]) == set(STAGES)
+            assert max(r["shift"].values()) <= MAX_SHIFT
+            assert max(r["turn"].values()) <= MAX_TURN
+        else:
+            st = r["failed_stage"]
+            assert r["shift"][st] > MAX_SHIFT or r["turn"][st] > MAX_TURN
+    for r in results:
+        if r["result"] == "unreachable":
+            assert r["reason"] and not r["shift"]
+    assert summary["tested"] == len(tested)
+    assert summary["held"] == sum(r["result"] == "held" for r in tested)
+    report = (out / "report.md").read_text()
+    assert "S_G as a predictor" in report and (out / "roc.png").stat().st_size > 1000
+
+
+def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> None:
+    _, results, _ = quick
+    obj = QUICK_OBJECTS[0]
+    from controllers.grasp.objects import PAPER_OBJECTS
+
+    [alone] = run_job(Job(obj, PAPER_OBJECTS.index(obj), "pi", 2, (1,), 0))
+    [pooled] = [r for r in results if (r["object"], r["controller"], r["index"]) == (obj, "pi", 1)]
+    assert alone == pooled
+
+
+def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() -> None:
+    """The grasp the old fixed-palm placement never reached (one contact per face: two fingers
+    would take faces their pads turn away from), checked by the kinematics, not the verdict."""
+    sw = StudyWorld.of("square")
+    theta = sw.target.polygon.normal_angle  # the middle of every face
+    assert len({round(float(t), 6) for t in theta}) == 4
+    placed = place_hand(sw.world, sw.prism, sw.target, theta, sw.postures, checker=sw.checker)
+    assert placed.reachable, placed.reason
+    assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
+    assert sorted(placed.contacts.contact_of_finger) == [0, 1, 2, 3]
+    assert placed.tilt is not None and placed.tilt <= MAX_PALM_TILT
+    model = sw.world.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = placed.qpos
+    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
+    mujoco.mj_kinematics(model, data)
+    palm_z = data.site_xmat[model.site(PALM_SITE).id].reshape(3, 3)[:, 2]
+    assert np.degrees(np.arccos(-palm_z[2])) <= np.degrees(MAX_PALM_TILT) + 1e-6
+    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
+    error = np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
+    assert error.max() <= CONTACT_TOLERANCE
+    cosine = -np.einsum("fd,fd->f", pad_normals(model, data), placed.contacts.normals)
+    assert np.all(cosine >= np.cos(MAX_PAD_ANGLE))
+
+
+def test_a_block_the_hand_does_not_hold_is_dropped_when_the_table_goes() -> None:
+    sw = StudyWorld.of("trapezoid")
+    sw.world.reset()  # hand open above the table, nothing holds the block
+    out = GraspOutcome("trapezoid", "none", 0, [0.0] * 4)
+    physical_test(sw, grip=None, out=out)
+    assert out.result == "dropped" and out.failed_stage == "hang"
+    assert out.shift["hang"] > MAX_SHIFT
+
+
+def test_roc_and_auc_agree_with_a_pairwise_count() -> None:
+    rng = np.random.default_rng(3)
+    s_g = [float(x) for x in rng.uniform(0, 0.6, 40)] + [None, None]
+    held = [bool(x) for x in (np.array(s_g[:40]) + rng.normal(0, 0.15, 40) < 0.3)] + [False, True]
+    s = np.array([np.inf if v is None else v for v in s_g])
+    y = np.array(held)
+    pairs = [1.0 if a < b else 0.5 if a == b else 0.0 for a, b in itertools.product(s[y], s[~y])]
+    r = roc(s_g, held)
+    assert r.auc == pytest.approx(np.mean(pairs), abs=1e-12)
+    assert auc_mann_whitney(np.array([0.1, 0.2]), np.array([0.3, 0.4])) == 1.0
+    # the best threshold maximises TPR - FPR over every observed S_G
+    best = max(((s[y] <= t).mean() - (s[~y] <= t).mean()) for t in np.unique(s[np.isfinite(s)]))
+    assert r.best_j == pytest.approx(best)
+    assert r.tpr[0] == 0.0 and r.tpr[-1] == 1.0 and r.fpr[-1] == 1.0
+
+
+def test_bad_objects_are_refused_with_one_line_and_nothing_written(tmp_path: Path) -> None:
+    out = tmp_path / "never"
+    run = _cli("--out", str(out), "--objects", "square,circle")
+    assert run.returncode == 2
+    assert "circle" not in run.stdout and len(run.stderr.strip().splitlines()) == 1
+    assert "valid" in run.stderr and not out.exists()
