@@ -196,6 +196,10 @@ def robot_base_xy(ep: Episode) -> tuple[float, float]:
     return float(x), float(y)
 
 
+#: Horizontal distances (m) from the arm's base a place slot may lie at.
+PLACE_REACH = (0.35, 0.95)
+
+
 def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -> np.ndarray:
     """This cycle's place point: the asked one first, then free slots near it."""
     scene = ep.world.scene
@@ -207,7 +211,7 @@ def _place_for_cycle(ep: Episode, footprints: list[np.ndarray], radius: float) -
                 f"place point {first.round(3).tolist()} is occupied by another block",
             )
         return first
-    reach = (robot_base_xy(ep), 0.35, 0.95)
+    reach = (robot_base_xy(ep), *PLACE_REACH)
     slot = free_slot(first, radius, footprints, scene.table, reach)
     if slot is None:
         raise TaskFailedError(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
@@ -1268,11 +1272,20 @@ def deliver(ep: Episode) -> Step:
     )
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     tried = [np.asarray(ep.place, dtype=float)]
-    # a slot this cycle chose (not the place asked for) may be free for the block but not for the
-    # hand around it: take the next free slot
-    while not plan.found and ep.cycle > 0 and len(tried) < MAX_PLACE_SLOTS:
+    # a place the user did not ask for (a later cycle's slot, or the scene's place point) may be
+    # free for the block but not for the hand around it: take the next free slot
+    chosen = ep.cycle > 0 or (ep.options.place is None and ep.options.place_pixel is None)
+    while not plan.found and chosen and len(tried) < MAX_PLACE_SLOTS:
         taken = [t + 0.001 * np.array([[1.0, 0.0], [-0.5, 0.87], [-0.5, -0.87]]) for t in tried]
-        slot = _place_for_cycle(ep, [*ep.place_footprints, *taken], ep.place_radius)
+        slot = free_slot(
+            tried[0],
+            ep.place_radius,
+            [*ep.place_footprints, *taken],
+            world.scene.table,
+            (robot_base_xy(ep), PLACE_REACH[0], PLACE_REACH[1]),
+        )
+        if slot is None:
+            break
         log(
             State.DELIVER.value,
             State.DELIVER.value,

@@ -8,9 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from fsm import handlers
 from fsm.bench_jobs import blocks_for_seed
 from fsm.context import EpisodeOptions
+from fsm.layout import SLOT_SPACING, episode_scene
 from fsm.machine import run_episode
 from fsm.states import State, allowed
 
@@ -103,3 +106,18 @@ def test_clutter5_is_cleared_block_by_block(tmp_path: Path) -> None:
         j = cycle["judgement"]
         assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0, cycle["block"]
         assert max(j["other_blocks_moved_m"].values()) < 0.01, cycle["block"]
+
+
+def test_a_scene_place_point_the_hand_cannot_set_down_at_gives_way_to_a_free_slot(
+    tmp_path: Path,
+) -> None:
+    """Random scene 18: its place point is free for the block but a finger would land on the
+    block beside it (the set-down's descent keeps the hand 3 mm from other blocks), so the block
+    goes to the nearest free slot instead, and is judged there. A place the user asks for with
+    --place is never moved (test_fsm's bad-input tests)."""
+    scene = episode_scene("random", 18, blocks_for_seed(18, 3, 5))
+    result = _random_episode(18, tmp_path)
+    _delivered_physically(result)
+    (cycle,) = result.cycles
+    moved = np.linalg.norm(np.asarray(cycle["place"]) - np.asarray(scene.place))
+    assert moved >= SLOT_SPACING - 1e-9
