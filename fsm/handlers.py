@@ -38,11 +38,9 @@ from controllers.grip import (
     squeeze,
 )
 from controllers.hand_reach import (
-    BOTTOM_MARGIN,
     MIN_PAD_SPACING,
     PAD_NORMAL_LOCAL,
     SQUEEZE_REACH,
-    TOP_MARGIN,
     PerceivedPrism,
     fingertips_at,
     grip_targets,
@@ -331,28 +329,27 @@ def coarse_reach(ep: Episode) -> Step:
     )
 
 
-def _lateral_search(
+def _palm_pose_search(
     ep: Episode,
+    poses: list[PalmPose],
     theta_of,
     *,
     reachable_only: bool,
     skip: int = 0,
-    poses: list[LateralPose] | None = None,
 ):
-    """Search the palm poses ``poses`` (default :func:`_lateral_poses`), in groups of one
-    ``gap``: for a lateral grasp the palm nearest the block first (the
-    fingers on the far contacts keep room to squeeze: at the limit of their reach they push the
-    block along instead), for one from which the hand reaches the contacts ``theta_of(pose)``
-    (the hand IK starting from sampled finger postures) and that it approaches without
-    collision (:func:`_approach_plan`); of several at one distance, the one with the lowest
-    ``HandReach.load``. Without ``reachable_only``, when none reaches, the lowest load that
-    approaches. ``skip`` passes over that many acceptable poses first (a regrasp tries the next).
-    Returns (qpos, contacts, label, load, approach plan) or None."""
+    """Search the palm ``poses`` (:func:`_lateral_poses`, :func:`_top_poses`) group by group (a
+    lateral grasp's palm nearest the block first: the fingers on the far contacts keep room to
+    squeeze; at the limit of their reach they push the block along instead) for one from which
+    the hand reaches the contacts ``theta_of(pose)`` (the hand IK starting from sampled finger
+    postures) and that it approaches without collision (:func:`_approach_plan`); of several in
+    one group, the one with the lowest ``HandReach.load``. Without ``reachable_only``, when none
+    reaches, the lowest load that approaches. ``skip`` passes over that many acceptable poses
+    first (a regrasp tries the next). Returns (qpos, contacts, label, load, approach plan) or
+    None."""
     world = ep.world
     hand_adr = HandIndices.of(world.model).finger_qpos.ravel()
     tried = []
-    poses = _lateral_poses(ep) if poses is None else poses
-    for _, group in itertools.groupby(poses, key=lambda pose: pose.gap):
+    for _, group in itertools.groupby(poses, key=lambda pose: pose.group):
         found = []
         for pose in group:
             contacts, reach = reachable_contacts(
@@ -433,11 +430,11 @@ def _side_contacts(ep: Episode, tips: np.ndarray) -> np.ndarray:
 def _lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
     the surface points nearest the fingertips of :data:`LATERAL_PINCH` there (kept a pad spacing
-    apart; :func:`_lateral_search`); the hand pre-shapes outside those points and the palm moves
-    there along its approach axis (``skip``: the next pose, :func:`_lateral_search`). Returns what
+    apart; :func:`_palm_pose_search`); the hand pre-shapes outside those points and the palm moves
+    there along its approach axis (``skip``: the next pose, :func:`_palm_pose_search`). Returns what
     was done, for the log, or None when no pose is approached without collision."""
 
-    def pinch_contacts(pose: LateralPose) -> np.ndarray:
+    def pinch_contacts(pose: PalmPose) -> np.ndarray:
         tips = fingertips_at(ep.planning, pose.qpos)
         return separate_contacts(
             ep.target.polygon,
@@ -446,7 +443,9 @@ def _lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
             robot.PAD_RADIUS,
         )
 
-    found = _lateral_search(ep, pinch_contacts, reachable_only=False, skip=skip)
+    found = _palm_pose_search(
+        ep, _lateral_poses(ep), pinch_contacts, reachable_only=False, skip=skip
+    )
     if found is None:
         return None
     _, _, label, load, plan = found
@@ -799,16 +798,17 @@ def _posture_seeds(ep: Episode) -> list[tuple[str, np.ndarray]]:
 
 
 @dataclass(frozen=True)
-class LateralPose:
-    """A palm pose beside the block that a lateral search tries: the configuration (qpos, the
-    hand in :data:`LATERAL_PINCH`), the palm face's distance from the block (m) and a label."""
+class PalmPose:
+    """A palm pose a Posture Control search tries (:func:`_palm_pose_search`): the
+    configuration (qpos), its group (poses are tried group by group, in order: a lateral pose's
+    palm-block distance in m, a top pose's 0 where the palm is and 1 shifted) and a label."""
 
     qpos: np.ndarray
-    gap: float
+    group: float
     label: str
 
 
-def _lateral_poses(ep: Episode) -> list[LateralPose]:
+def _lateral_poses(ep: Episode) -> list[PalmPose]:
     """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
     has five joints), hand y up as the coarse reach put it, turned LATERAL_ROLLS about the axis,
     the palm face LATERAL_GAPS from the block's nearest point along the axis, at the coarse
@@ -845,7 +845,7 @@ def _lateral_poses(ep: Episode) -> list[LateralPose]:
                     f"palm {gap * 100:.1f} cm from the block, {shift * 100:+.1f} cm aside, "
                     f"rolled {np.degrees(roll):+.0f} deg"
                 )
-                poses.append(LateralPose(qpos, gap, label))
+                poses.append(PalmPose(qpos, gap, label))
     return poses
 
 
@@ -901,20 +901,15 @@ def _squeeze_reach(ep: Episode) -> float:
     return LATERAL_SQUEEZE_REACH if _slides(ep) else SQUEEZE_REACH
 
 
-def _slide_range(ep: Episode) -> tuple[float, float]:
-    """Heights (m) a sliding contact may take on the perceived block."""
-    return (ep.prism.bottom + BOTTOM_MARGIN, ep.prism.top - TOP_MARGIN)
-
-
 #: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose.
 LATERAL_TRIES = 2
 
 
-def _lateral_posture(ep: Episode):
-    """Lateral Posture Control: a palm pose beside the block from which the hand reaches the
-    current contacts (:func:`_lateral_search`): (qpos, contacts, label, approach plan) or None."""
+def _posture_among(ep: Episode, poses: list[PalmPose]):
+    """A palm pose of ``poses`` from which the hand reaches the current contacts
+    (:func:`_palm_pose_search`): (qpos, contacts, label, approach plan) or None."""
     theta = ep.synthesis.theta
-    found = _lateral_search(ep, lambda pose: theta, reachable_only=True)
+    found = _palm_pose_search(ep, poses, lambda pose: theta, reachable_only=True)
     return None if found is None else (*found[:3], found[4])
 
 
@@ -926,15 +921,13 @@ def _reachable_posture(ep: Episode):
     searches :func:`_top_poses` with sampled finger postures as IK starts. Over random scenes
     0-29 (3-5 blocks, pi) the palm-pose search took the episodes delivered from 25 to 26."""
     if _slides(ep):
-        return _lateral_posture(ep)
+        return _posture_among(ep, _lateral_poses(ep))
     found = _roll_seed_posture(ep)
     if found is not None:
         return (*found, None)
     # the arm's differential IK from the roll seeds found nothing: search palm poses above the
     # block, the fingers' IK starting from sampled postures (as a lateral grasp does)
-    theta = ep.synthesis.theta
-    found = _lateral_search(ep, lambda pose: theta, reachable_only=True, poses=_top_poses(ep))
-    return None if found is None else (*found[:3], found[4])
+    return _posture_among(ep, _top_poses(ep))
 
 
 #: A top grasp's palm poses (:func:`_top_poses`): the hand turned about the vertical through the
@@ -944,10 +937,10 @@ TOP_ROLLS = tuple(np.deg2rad(np.arange(0.0, 360.0, 30.0)))
 TOP_SHIFT = 0.008
 
 
-def _top_poses(ep: Episode) -> list[LateralPose]:
+def _top_poses(ep: Episode) -> list[PalmPose]:
     """Palm poses above the perceived block for a top grasp's Posture Control: the palm level
     (the coarse reach's orientation) at its present height, turned TOP_ROLLS about the vertical
-    through the block's centroid, first where it is (``gap`` 0), then TOP_SHIFT aside (``gap``
+    through the block's centroid, first where it is (``group`` 0), then TOP_SHIFT aside (``group``
     1); the hand in its present shape."""
     world = ep.world
     m = world.model
@@ -981,7 +974,7 @@ def _top_poses(ep: Episode) -> list[LateralPose]:
             label = f"palm turned {np.degrees(roll):+.0f} deg about the block" + (
                 f", moved {shift[0] * 1000:+.0f}, {shift[1] * 1000:+.0f} mm" if gap else ""
             )
-            poses.append(LateralPose(qpos, float(gap), label))
+            poses.append(PalmPose(qpos, float(gap), label))
     return poses
 
 
@@ -1000,7 +993,6 @@ def _roll_seed_posture(ep: Episode):
             model=ep.planning,
             qpos=seed,
             tries=1,
-            slide=_slides(ep),
         )
         tips, centres = grip_targets(contacts.points, contacts.normals)
         sol = solve_posture(
@@ -1013,7 +1005,6 @@ def _roll_seed_posture(ep: Episode):
             fingers_may_touch=True,
             pad_centres=centres,
             qpos=seed,
-            slide=_slide_range(ep) if _slides(ep) else None,
         )
         if not sol.reachable:
             continue
@@ -1030,7 +1021,6 @@ def _roll_seed_posture(ep: Episode):
             model=ep.planning,
             qpos=qpos,
             check_spacing=False,
-            slide=_slides(ep),
         )
         if reach.reachable:
             return qpos, contacts, label
