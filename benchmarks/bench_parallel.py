@@ -10,29 +10,19 @@ figures are only as good as the machine was idle.
 
 from __future__ import annotations
 
-import json
 import os
 import resource
 import sys
 import time
 from collections.abc import Sequence
-from typing import Any
 
 from fsm.bench import block_range, machine_cores, seed_range
-from fsm.bench_jobs import Job, JobResult, blocks_for_seed
+from fsm.bench_jobs import Job, JobResult, blocks_for_seed, without_wall_times
 from fsm.bench_pool import open_runner
 from fsm.context import CONTROLLERS
 from hand_sim.clitools import ERRORS, ArgumentParser, first_paragraph, integer, run_main
 
 PROG = "python -m benchmarks.bench_parallel"
-
-
-def _comparable(line: dict[str, Any]) -> dict[str, Any]:
-    out = json.loads(json.dumps(line))
-    out.pop("wall_time")
-    for v in out["visits"]:
-        v.pop("wall_seconds")
-    return out
 
 
 def _cpu_seconds() -> float:
@@ -81,7 +71,9 @@ def run(argv: Sequence[str] | None) -> int:
             f"{base / elapsed:9.2f} {cpu / len(jobs):14.1f} {cpu / elapsed:11.2f}"
         )
     first, second = runs[1], runs[args.workers]
-    same = all(_comparable(first[s].line) == _comparable(second[s].line) for s in first)
+    same = all(
+        without_wall_times(first[s].line) == without_wall_times(second[s].line) for s in first
+    )
     delivered = sum(bool(r.line["success"]) for r in first.values())
     print(
         f"same results with 1 and {args.workers} workers: {'yes' if same else 'NO'}; "

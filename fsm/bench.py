@@ -42,7 +42,7 @@ from fsm.bench_jobs import (
     read_results,
 )
 from fsm.bench_pool import RAY_LOCAL
-from fsm.context import APPROACH_CHOICES, CONTROLLERS
+from fsm.run import add_controller_and_approach
 from hand_sim.clitools import (
     ERRORS,
     SEED_MAX,
@@ -130,19 +130,7 @@ def parser() -> ArgumentParser:
         "seed alone (numpy default_rng([seed, 12]).integers(LO, HI + 1)) "
         "(default: the generator's, scenes/random.toml)",
     )
-    ap.add_argument(
-        "--controller",
-        default="pi",
-        choices=CONTROLLERS,
-        help="grasp controller: pre-imaging (section 4), knowledge-based (3.6.1), "
-        "Q-learning (3.6.2)",
-    )
-    ap.add_argument(
-        "--approach",
-        default="auto",
-        choices=APPROACH_CHOICES,
-        help="auto: the coarse planner chooses top or lateral; or force one",
-    )
+    add_controller_and_approach(ap)
     ap.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),

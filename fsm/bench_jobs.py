@@ -182,6 +182,15 @@ def read_results(path: Path) -> list[dict[str, Any]]:
     return out
 
 
+def without_wall_times(line: dict[str, Any]) -> dict[str, Any]:
+    """A results line with what depends on the machine's load taken out."""
+    out = json.loads(json.dumps(line))
+    out.pop("wall_time")
+    for v in out["visits"]:
+        v.pop("wall_seconds")
+    return out
+
+
 def drop_torn_tail(path: Path) -> bool:
     """Cut a final line without its newline off ``path`` (left by a process killed while it
     appended), so that the next line starts on a line of its own. True when something was cut."""

@@ -7,6 +7,7 @@ and ``DIR/episode.rrd`` are written in every case but bad input.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +38,23 @@ PROG = "python -m fsm.run"
 PLACE_REACH = (0.35, 0.95)
 #: Most blocks ``--cycles`` may ask for (``all`` clears the table whatever their number).
 MAX_CYCLES = 50
+
+
+def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
+    """``--controller`` and ``--approach``, as ``fsm.run`` and ``fsm.bench`` both take them."""
+    ap.add_argument(
+        "--controller",
+        default="pi",
+        choices=CONTROLLERS,
+        help="grasp controller: pre-imaging (section 4), knowledge-based (3.6.1), "
+        "Q-learning (3.6.2)",
+    )
+    ap.add_argument(
+        "--approach",
+        default="auto",
+        choices=APPROACH_CHOICES,
+        help="auto: the coarse planner chooses top or lateral; or force one",
+    )
 
 
 def parser() -> ArgumentParser:
@@ -86,19 +104,7 @@ def parser() -> ArgumentParser:
         help=f"place at the table point seen at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} "
         "overhead image",
     )
-    ap.add_argument(
-        "--controller",
-        default="pi",
-        choices=CONTROLLERS,
-        help="grasp controller: pre-imaging (section 4), knowledge-based (3.6.1), "
-        "Q-learning (3.6.2)",
-    )
-    ap.add_argument(
-        "--approach",
-        default="auto",
-        choices=APPROACH_CHOICES,
-        help="auto: the coarse planner chooses top or lateral; or force one",
-    )
+    add_controller_and_approach(ap)
     ap.add_argument(
         "--cycles",
         default="1",

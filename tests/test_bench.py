@@ -30,6 +30,7 @@ from fsm.bench_jobs import (
     drop_torn_tail,
     read_results,
     run_job,
+    without_wall_times,
 )
 from fsm.bench_report import DPI, FIG_SIZE, FIGURES, write_report
 from fsm.bench_stats import summarize, wilson_interval
@@ -43,15 +44,6 @@ QUICK = ["--scene", "random", "--blocks", "3:5", "--controller", CONTROLLER]
 # --- helpers --------------------------------------------------------------------------------------
 def lines_of(folder: Path) -> dict[int, dict[str, Any]]:
     return {line["seed"]: line for line in read_results(folder / "results.jsonl")}
-
-
-def without_wall_times(line: dict[str, Any]) -> dict[str, Any]:
-    """A results line with what depends on the machine's load taken out."""
-    out = json.loads(json.dumps(line))
-    out.pop("wall_time")
-    for v in out["visits"]:
-        v.pop("wall_seconds")
-    return out
 
 
 def table(report: str, heading: str) -> list[list[str]]:
