@@ -39,6 +39,11 @@ from hand_sim.world import World
 #: 17 mm; the rest is room for the finger links beside them. Contacts on faces at an angle may
 #: be closer than contacts side by side on one face.
 MIN_PAD_SPACING = 0.019
+#: Extra spacing (m) the grasp controller keeps between contacts beyond :data:`MIN_PAD_SPACING`,
+#: so that contacts it returns are not on the reach test's limit.
+SEPARATION_MARGIN = 0.002
+#: Smallest distance (m) between two contacts the grasp controller may return.
+CONTACT_SEPARATION = MIN_PAD_SPACING + SEPARATION_MARGIN
 #: A fingertip reaches its contact when its tip site ends this close (m) to the contact point.
 CONTACT_TOLERANCE = 0.002
 #: Largest angle (rad) between a fingertip's pad normal and the face's inward normal (the pad

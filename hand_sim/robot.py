@@ -7,6 +7,10 @@ dm_control prefixes every arm name with ``arm/`` and every hand name with ``arm/
 
 from __future__ import annotations
 
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
 from hand_sim.errors import HandSimError
 
 #: Model names given to the attached arm and hand (they become the dm_control name prefixes).
@@ -42,6 +46,9 @@ PALM_BODY = "palm"
 #: there (force, torque).
 MOUNT_SITE = "mount"
 WRIST_SENSORS: tuple[str, ...] = ("wrist_force", "wrist_torque", "wrist_accel")
+#: Standard gravity (m/s^2): the worlds' gravity (MuJoCo's default, along -z) and the factor that
+#: turns a mass into a weight.
+STANDARD_GRAVITY = 9.81
 #: Links of a finger, palm side first, as the hand model names its bodies (``ff_proximal``...).
 FINGER_LINKS: tuple[str, ...] = ("proximal", "middle", "distal")
 
@@ -84,3 +91,21 @@ def arm_name(name: str) -> str:
 def hand_name(name: str) -> str:
     """Any element name of models/hand.xml as it appears in the compiled world model."""
     return HAND_PREFIX + name
+
+
+def qpos_addresses(model: mujoco.MjModel, joints: tuple[str, ...]) -> NDArray[np.int64]:
+    """Addresses in ``qpos`` of the robot's single-DOF ``joints`` (bare names, e.g.
+    :data:`ARM_JOINTS`) in the compiled world ``model``, in the order given."""
+    return np.array(
+        [model.jnt_qposadr[model.joint(qualified(j)).id] for j in joints], dtype=np.int64
+    )
+
+
+def arm_qpos_addresses(model: mujoco.MjModel) -> NDArray[np.int64]:
+    """Addresses in ``qpos`` of the arm's joints, :data:`ARM_JOINTS` order."""
+    return qpos_addresses(model, ARM_JOINTS)
+
+
+def hand_qpos_addresses(model: mujoco.MjModel) -> NDArray[np.int64]:
+    """Addresses in ``qpos`` of the hand's joints, :data:`HAND_JOINTS` order."""
+    return qpos_addresses(model, HAND_JOINTS)
