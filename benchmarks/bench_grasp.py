@@ -10,8 +10,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from controllers.grasp import PAPER_OBJECTS, KnowledgeBased, grasp_score, paper_object, run_trials
-from controllers.grasp import clitools as cli
 from controllers.grasp.trials import PolygonBatch
+from graspsim_base import cli
 
 PROG = "python -m benchmarks.bench_grasp"
 

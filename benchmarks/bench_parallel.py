@@ -1,7 +1,7 @@
-"""Speed-up of ``python -m fsm.bench`` with N worker processes over one: the same episodes (task
-cycles on random scenes) run first one after another in this process (``--workers 1``), then in a
-pool of N ``spawn``ed processes (``--workers N``, the pool's start-up included), and the elapsed
-wall times compared. Also checks that both gave the same results (wall times aside).
+"""Speed-up of ``python -m experiments.bench`` with N worker processes over one: the same episodes
+(task cycles on random scenes) run first one after another in this process (``--workers 1``), then
+in a pool of N ``spawn``ed processes (``--workers N``, the pool's start-up included), and the
+elapsed wall times compared. Also checks that both gave the same results (wall times aside).
 
 Run: ``python -m benchmarks.bench_parallel [--seeds 0:4] [--blocks 3] [--controller kb]
 [--workers 2]``. The machine's load average is printed before and after: on shared cores the
@@ -16,9 +16,9 @@ import sys
 import time
 from collections.abc import Sequence
 
-from fsm.bench import block_range, machine_cores, seed_range
-from fsm.bench_jobs import Job, JobResult, blocks_for_seed, without_wall_times
-from fsm.bench_pool import open_runner
+from experiments.bench.cli import block_range, machine_cores, seed_range
+from experiments.bench.jobs import Job, JobResult, blocks_for_seed, without_wall_times
+from experiments.bench.runners import open_runner
 from fsm.context import CONTROLLERS
 from hand_sim.clitools import ERRORS, ArgumentParser, first_paragraph, integer, run_main
 

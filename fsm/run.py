@@ -41,7 +41,7 @@ MAX_CYCLES = 50
 
 
 def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
-    """``--controller`` and ``--approach``, as ``fsm.run`` and ``fsm.bench`` both take them."""
+    """``--controller`` and ``--approach``, as ``fsm.run`` and ``experiments.bench`` take them."""
     ap.add_argument(
         "--controller",
         default="pi",

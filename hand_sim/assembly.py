@@ -16,7 +16,7 @@ from hand_sim import robot
 from hand_sim.blocks import add_block
 from hand_sim.errors import SimulationError
 from hand_sim.resources import models_dir
-from hand_sim.scene import Scene, TableSpec
+from hand_sim.scene_spec import Scene, TableSpec
 
 #: Directory of the MJCF models (hand.xml, arm.xml, table.xml), found by :mod:`hand_sim.resources`.
 MODELS_DIR = models_dir()

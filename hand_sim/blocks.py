@@ -13,7 +13,7 @@ from dm_control import mjcf
 from numpy.typing import NDArray
 
 from controllers.grasp import Polygon
-from hand_sim.scene import BlockSpec
+from hand_sim.scene_spec import BlockSpec
 
 #: Density of a hardwood such as maple or beech (kg/m^3).
 WOOD_DENSITY = 700.0

@@ -1,5 +1,5 @@
 """Command-line plumbing of ``hand_sim`` and of every command built on it (``hand_sim.show``, the
-benchmarks, ``vision``, ``fsm.run``): the shared toolkit of :mod:`controllers.grasp.clitools`
+benchmarks, ``vision``, ``fsm.run``): the shared toolkit of :mod:`graspsim_base.cli`
 (one-line errors with exit status 2, Ctrl-C as one line with exit status 130, checked numbers and
 output paths) and the errors a ``hand_sim`` command reports as bad input.
 
@@ -23,7 +23,8 @@ A command looks like this::
 
 from __future__ import annotations
 
-from controllers.grasp.clitools import (
+from controllers.grasp.errors import GraspError
+from graspsim_base.cli import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
     SEED_MAX,
@@ -43,7 +44,6 @@ from controllers.grasp.clitools import (
     run_main,
     seed,
 )
-from controllers.grasp.errors import GraspError
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.errors import HandSimError
 

@@ -15,7 +15,8 @@ import numpy as np
 from controllers.grasp import PAPER_OBJECTS, paper_object
 from hand_sim.errors import SceneError
 from hand_sim.geometry import convex_polygon_distance, place_polygon
-from hand_sim.scene import (
+from hand_sim.scene_file import parse_table
+from hand_sim.scene_spec import (
     COLOURS,
     MIN_BLOCK_GAP,
     RANDOM_SCENE,
@@ -23,7 +24,6 @@ from hand_sim.scene import (
     BlockSpec,
     Scene,
     TableSpec,
-    parse_table,
     validate_scene,
 )
 from hand_sim.tomlfields import TomlFields, read_toml

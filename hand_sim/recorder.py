@@ -31,7 +31,7 @@ import rerun as rr
 from numpy.typing import ArrayLike, NDArray
 from rerun.chunk import RrdReader
 
-from controllers.grasp.files import temporary_name
+from graspsim_base.files import temporary_name
 from hand_sim.errors import HandSimError
 
 if TYPE_CHECKING:

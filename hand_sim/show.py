@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.grasp.files import atomic_path
+from graspsim_base.files import atomic_path
 from hand_sim import clitools as cli
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.camera import OverheadCamera

@@ -31,7 +31,7 @@ from hand_sim.assembly import (
 )
 from hand_sim.blocks import JOINT_SUFFIX
 from hand_sim.errors import HandSimError, SimulationError
-from hand_sim.scene import Scene
+from hand_sim.scene_spec import Scene
 
 __all__ = ["CAMERA_NAME", "MODELS_DIR", "TIMESTEP", "World"]
 

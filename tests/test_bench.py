@@ -1,6 +1,6 @@
-"""``python -m fsm.bench``: the per-seed block count, the results file, the report's numbers (the
-Wilson interval against scipy's independent implementation), bad input, and real episodes run in
-2 worker processes, resumed in this process and on a local Ray instance, giving the same results
+"""``python -m experiments.bench``: the per-seed block count, the results file, the report's numbers
+(the Wilson interval against scipy's independent implementation), bad input, and real episodes run
+in 2 worker processes, resumed in this process and on a local Ray instance, giving the same results
 wherever they ran (wall times aside)."""
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from fsm import bench, handlers
-from fsm.bench_jobs import (
+from experiments.bench import cli as bench
+from experiments.bench.jobs import (
     CRASHED,
     BenchError,
     Job,
@@ -32,8 +32,9 @@ from fsm.bench_jobs import (
     run_job,
     without_wall_times,
 )
-from fsm.bench_report import DPI, FIG_SIZE, FIGURES, write_report
-from fsm.bench_stats import summarize, wilson_interval
+from experiments.bench.report import DPI, FIG_SIZE, FIGURES, write_report
+from experiments.bench.stats import summarize, wilson_interval
+from fsm import handlers
 from fsm.states import State
 
 #: The controller the episode tests run (needs no trained model).

@@ -25,6 +25,7 @@ from benchmarks import (
     hand_reachability,
 )
 from controllers.grasp import cli as grasp_cli
+from experiments.paper import cli as paper_cli
 from hand_sim import show
 from vision import bench as vision_bench
 from vision.__main__ import main as vision_main
@@ -124,6 +125,11 @@ GRASP_CASES = [
     (["score", "--polygon", BOWTIE, "--points", "0,0"], "self-intersecting"),
     (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--json", "/proc/x.json"], "--json"),
     (["score", "--polygon", SQUARE], "the following arguments are required: --points"),
+    ([], "the following arguments are required: COMMAND"),
+]
+
+# python -m experiments.paper
+PAPER_CASES = [
     # table1
     (["table1", "--trials", "0"], "argument --trials"),
     (["table1", "--gain", "0"], "argument --gain"),
@@ -243,6 +249,12 @@ def test_grasp_cli(argv, fragment, files, capsys) -> None:
     no_output(files)
 
 
+@pytest.mark.parametrize(("argv", "fragment"), PAPER_CASES)
+def test_paper_cli(argv, fragment, files, capsys) -> None:
+    check_one_line(paper_cli.main, argv, fragment, files, capsys)
+    no_output(files)
+
+
 @pytest.mark.parametrize(("argv", "fragment"), SHOW_CASES)
 def test_hand_sim_show(argv, fragment, files, capsys) -> None:
     check_one_line(show.main, argv, fragment, files, capsys)
@@ -286,7 +298,7 @@ ENTRY_POINTS = [
     (["benchmarks.bench_reach", "--resolutions", "0"], "--resolutions"),
     (["benchmarks.arm_reach", "--step", "0"], "--step"),
     (["benchmarks.hand_reachability", "--objects", "circle"], "--objects"),
-    (["fsm.bench", "--seeds", "0:0"], "--seeds"),
+    (["experiments.bench", "--seeds", "0:0"], "--seeds"),
 ]
 
 

@@ -15,11 +15,11 @@ import pytest
 from rerun.chunk import RrdReader
 
 from controllers.grasp import cli as grasp_cli
-from controllers.grasp.reproduce import ReproduceConfig, reproduce
+from experiments.paper.reproduce import ReproduceConfig, reproduce
 from hand_sim import show
 from hand_sim.recorder import read_recording
 
-GRASP = [sys.executable, "-m", "controllers.grasp"]
+PAPER = [sys.executable, "-m", "experiments.paper"]
 TINY = replace(
     ReproduceConfig.quick_run(),
     seeds=(1,),
@@ -53,7 +53,7 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
     reproduce(out, TINY, progress=lambda _: None)  # an earlier, finished run
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     p = subprocess.Popen(
-        [*GRASP, "reproduce", "--quick", "--seeds", "2", "--out", str(out)],
+        [*PAPER, "reproduce", "--quick", "--seeds", "2", "--out", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -72,7 +72,7 @@ def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
     assert p.returncode == 130, "".join(lines)
     assert "Traceback" not in "".join(lines)
     assert (
-        lines[-1].strip() == f"python -m controllers.grasp: interrupted; partial results in {out}"
+        lines[-1].strip() == f"python -m experiments.paper: interrupted; partial results in {out}"
     )
     assert p.stdout is not None and p.stdout.read() == ""
     # no temporary file is left; the seed-1 models left in the folder are refused as a run

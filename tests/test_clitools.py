@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from controllers.grasp import clitools as cli
 from controllers.grasp.errors import PolygonError
-from controllers.grasp.files import atomic_path, temporary_name, write_text
+from graspsim_base import cli
+from graspsim_base.files import atomic_path, temporary_name, write_text
 
 # (type, text, accepted value or None when refused, fragment of the refusal)
 TYPE_CASES = [
@@ -132,7 +132,7 @@ def _raise(exc: BaseException):
     ],
 )
 def test_run_main_maps_outcomes_to_exit_status(body, status, message, capsys) -> None:
-    assert cli.run_main(body, prog="prog") == status
+    assert cli.run_main(body, prog="prog", errors=(PolygonError,)) == status
     err = capsys.readouterr().err
     if message is None:
         assert err == ""

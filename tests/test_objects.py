@@ -24,7 +24,7 @@ from controllers.grasp.objects import (
     polygon_set_seeds,
 )
 from controllers.grasp.qlearning import epoch_objects, epoch_trials
-from controllers.grasp.reproduce import ReproduceConfig, general_training_set
+from experiments.paper.tasks import ReproduceConfig, general_training_set
 
 
 def _edges(p):

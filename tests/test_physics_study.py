@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from controllers.cspace import PALM_SITE
-from controllers.hand_placement import MAX_PALM_TILT, place_hand
 from controllers.hand_reach import (
     CONTACT_TOLERANCE,
     MAX_PAD_ANGLE,
@@ -23,8 +22,10 @@ from controllers.hand_reach import (
     grip_targets,
     pad_normals,
 )
-from controllers.physics_report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
-from controllers.physics_study import (
+from controllers.posture import HandIndices
+from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
+from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
+from experiments.physics.study import (
     MAX_SHIFT,
     MAX_TURN,
     STAGES,
@@ -34,7 +35,6 @@ from controllers.physics_study import (
     physical_test,
     run_job,
 )
-from controllers.posture import HandIndices
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _cli(*args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "MUJOCO_GL": "egl"}
     return subprocess.run(
-        [sys.executable, "-m", "controllers.grasp", "physics", *args],
+        [sys.executable, "-m", "experiments.physics", *args],
         cwd=ROOT,
         env=env,
         capture_output=True,

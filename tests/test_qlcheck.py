@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from controllers.grasp.objects import ObjectSet, paper_object
-from controllers.grasp.qlcheck import SequentialQLearning, train_sequential
 from controllers.grasp.qlearning import ALPHA, FINAL_REWARD, GAMMA, state_index
+from experiments.paper.qlcheck import SequentialQLearning, train_sequential
 
 
 def _state(eps_fc, eps_mc, active=(True, True)):

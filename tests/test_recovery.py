@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.bench.jobs import blocks_for_seed
 from fsm import handlers
-from fsm.bench_jobs import blocks_for_seed
 from fsm.context import EpisodeOptions
 from fsm.layout import SLOT_SPACING, episode_scene
 from fsm.machine import run_episode

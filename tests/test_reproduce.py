@@ -11,9 +11,9 @@ import pytest
 from controllers.grasp.cli import main
 from controllers.grasp.objects import PAPER_LABELS
 from controllers.grasp.qlearning import ACTIONS, N_BINS, save_q_table
-from controllers.grasp.reproduce import MODEL_FILES, ReproduceConfig, reproduce
 from controllers.grasp.run_folder import check_finished_run, mark_started
 from controllers.grasp.shipped import check_figures
+from experiments.paper.reproduce import MODEL_FILES, ReproduceConfig, reproduce
 
 TINY = replace(
     ReproduceConfig.quick_run(),

@@ -10,8 +10,9 @@ from controllers.grasp.cli import main
 from controllers.grasp.preimaging import PreImaging
 from controllers.grasp.qlearning import QLearningComposer
 from controllers.grasp.registry import PROVENANCE_FILE, make_composer, shipped_model_dir
-from controllers.grasp.reproduce import GENERAL_SETTINGS, MODEL_FILES
 from controllers.grasp.shipped import check_figures, read_provenance
+from experiments.paper.reproduce import MODEL_FILES
+from experiments.paper.tasks import GENERAL_SETTINGS
 
 
 def test_shipped_models_are_found_from_any_directory(tmp_path, monkeypatch):

@@ -10,10 +10,10 @@ from controllers.grasp import (
     regular_polygon,
     run_trials,
 )
-from controllers.grasp.experiments import PAPER_TABLE1_KB, table1_rows
 from controllers.grasp.score import grasp_score
 from controllers.grasp.trials import CONVERGENCE_STEP, GAIN, PolygonBatch, control_state
 from controllers.grasp.wrench import mc_residual
+from experiments.paper.tables import PAPER_TABLE1_KB, table1_rows
 from tests.test_score import linprog_score
 
 

@@ -22,7 +22,15 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 #: The packages that the wheel installs (pyproject.toml, [tool.setuptools.packages.find]).
-PACKAGES = ("benchmarks", "controllers", "fsm", "hand_sim", "vision")
+PACKAGES = (
+    "benchmarks",
+    "controllers",
+    "experiments",
+    "fsm",
+    "graspsim_base",
+    "hand_sim",
+    "vision",
+)
 #: Top-level data folders and where the wheel carries them (hand_sim/resources.py, setup.py).
 DATA_FOLDERS = {"models": "*.xml", "scenes": "*.toml"}
 INSTALLED_DATA = "hand_sim/_data"
@@ -33,12 +41,14 @@ COPY_IGNORE = shutil.ignore_patterns(
 #: Console scripts (pyproject.toml, [project.scripts]) and the ``python -m`` form each stands for,
 #: as their --help shows it. graspsim-run is checked with the task cycle.
 SCRIPTS = {
-    "graspsim-reproduce": "python -m controllers.grasp reproduce",
+    "graspsim-reproduce": "python -m experiments.paper reproduce",
+    "graspsim-paper": "python -m experiments.paper",
+    "graspsim-physics": "python -m experiments.physics",
     "graspsim-grasp": "python -m controllers.grasp",
     "graspsim-show": "python -m hand_sim.show",
     "graspsim-vision": "python -m vision",
     "graspsim-vision-bench": "python -m vision.bench",
-    "graspsim-bench": "python -m fsm.bench",
+    "graspsim-bench": "python -m experiments.bench",
 }
 #: Seconds allowed per subprocess (the whole module takes well under a minute on 2 cores).
 TIMEOUT = 150
@@ -207,10 +217,6 @@ def test_console_script_is_the_python_m_form(install: Install, script: str) -> N
     assert r.stdout.startswith(f"usage: {SCRIPTS[script]}"), r.stdout[:200]
 
 
-@pytest.mark.skipif(
-    not (REPO / "fsm" / "run.py").is_file(),
-    reason="package fsm (fsm/run.py, the task cycle of issue 9) is not written yet",
-)
 def test_installed_task_cycle_runs_clutter3_from_an_empty_folder(install: Install) -> None:
     run([install.bin / "graspsim-run", "--help"], install)
     run([install.python, "-m", "fsm.run", "--scene", "clutter3"], install)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.grasp.files import atomic_path
+from graspsim_base.files import atomic_path
 from hand_sim import clitools as cli
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.scene import RANDOM_SCENE, Scene, load_scene

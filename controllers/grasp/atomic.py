@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
-from controllers.grasp.files import atomic_path
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.qlearning import (
     ALPHA,
@@ -34,6 +33,7 @@ from controllers.grasp.qlearning import (
 )
 from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
+from graspsim_base.files import atomic_path
 
 #: Angular sectors of the object surface (section 2.2.1: 12 bins of 30 degrees).
 N_SECTORS = 12

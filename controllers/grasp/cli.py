@@ -1,7 +1,7 @@
-"""Command line of the grasp core: ``python -m controllers.grasp {trials,score,table1,reproduce}``.
+"""Command line of the grasp core: ``python -m controllers.grasp {trials,score}``.
 
 Results go to stdout as one-line summaries and, with ``--json``, to a JSON file other programs can
-check. Bad input is one line on stderr and exit status 2 (:mod:`controllers.grasp.clitools`).
+check. Bad input is one line on stderr and exit status 2 (:mod:`graspsim_base.cli`).
 """
 
 from __future__ import annotations
@@ -15,29 +15,22 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.grasp import clitools as cli
-from controllers.grasp.errors import PolygonError
-from controllers.grasp.experiments import (
-    FAMILY_TRIALS,
-    PAPER_TABLE1_AVERAGE,
-    PAPER_TABLE1_KB,
-    average_failure,
-    table1_rows,
-    trial_summary,
-)
-from controllers.grasp.files import write_text
-from controllers.grasp.objects import (
-    FAMILY_OBJECTS,
-    FAMILY_SIZE,
-    PAPER_LABELS,
-    PAPER_OBJECTS,
-    paper_object,
-)
+from controllers.grasp.errors import GraspError, PolygonError
+from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import Polygon, centroid_of, parse_points
 from controllers.grasp.registry import COMPOSERS, make_composer
 from controllers.grasp.run_folder import check_finished_run
 from controllers.grasp.score import grasp_score
-from controllers.grasp.trials import GAIN, MAX_STEPS, N_CONTACTS, PolygonBatch, run_trials
+from controllers.grasp.trials import (
+    GAIN,
+    MAX_STEPS,
+    N_CONTACTS,
+    PolygonBatch,
+    run_trials,
+    trial_summary,
+)
+from graspsim_base import cli
+from graspsim_base.files import write_text
 
 PROG = "python -m controllers.grasp"
 #: A contact point given to ``score`` may be this far (fraction of the diameter) off the outline.
@@ -53,10 +46,8 @@ MAX_GAIN = 10.0
 MAX_TASK = 1e6
 #: Controllers that read trained models from ``--models``.
 LEARNED = ("ql", "pi", "pi9", "pi5")
-#: Seeds a reproduce run may average over.
-MAX_SEEDS = 16
-#: Worker processes of reproduce (more than the machine's cores only adds switching).
-MAX_WORKERS = 64
+#: Errors the grasp commands report as bad input (one line, exit status 2).
+ERRORS: tuple[type[BaseException], ...] = (GraspError,)
 
 
 def _user_polygon(text: str, flag: str) -> tuple[np.ndarray, Polygon]:
@@ -74,13 +65,13 @@ def _polygon_arg(args: argparse.Namespace) -> Polygon:
     return paper_object(args.object)
 
 
-def _prepare_json(args: argparse.Namespace) -> None:
+def prepare_json(args: argparse.Namespace) -> None:
     """Check, before the work starts, that the ``--json`` file can be written."""
     if args.json is not None:
         cli.prepare_file(args.json, "--json")
 
 
-def _write_json(path: Path | None, payload: dict) -> None:
+def write_json(path: Path | None, payload: dict) -> None:
     if path is not None:
         write_text(path, json.dumps(payload, indent=1) + "\n")
 
@@ -94,7 +85,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         composer = make_composer(args.controller, args.models, gain=args.gain)
     else:
         composer = make_composer(args.controller, gain=args.gain)
-    _prepare_json(args)
+    prepare_json(args)
     rng = np.random.default_rng(args.seed)
     batch = PolygonBatch.of([poly])
     start = time.perf_counter()
@@ -139,7 +130,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         }
         for i in range(args.trials)
     ]
-    _write_json(
+    write_json(
         args.json, {"summary": summary, "vertices": poly.vertices.tolist(), "trials": per_trial}
     )
     return 0
@@ -157,7 +148,7 @@ def cmd_score(args: argparse.Namespace) -> int:
             f"--points: point {i} {tuple(float(c) for c in points[i] + centroid)} "
             f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
         )
-    _prepare_json(args)
+    prepare_json(args)
     scale = 1.0 / poly.max_moment
     task = None if args.task is None else list(args.task)
     normals = np.stack([np.cos(poly.normal_angle[edge]), np.sin(poly.normal_angle[edge])], axis=1)
@@ -167,7 +158,7 @@ def cmd_score(args: argparse.Namespace) -> int:
         print(f"S_G = {shown:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
     else:
         print("infeasible: no contact forces satisfy the constraints (a failure)")
-    _write_json(
+    write_json(
         args.json,
         {
             "feasible": score.feasible,
@@ -180,119 +171,12 @@ def cmd_score(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_table1(args: argparse.Namespace) -> int:
-    _prepare_json(args)
-    start = time.perf_counter()
-    rows = table1_rows(args.trials, args.seed, gain=args.gain)
-    elapsed = time.perf_counter() - start
-    print(
-        f"Table 1, knowledge-based composition: {args.trials} trials per regular object, "
-        f"{FAMILY_TRIALS} per shape of the * families ({FAMILY_SIZE} shapes, 5-95 % range), "
-        f"seed {args.seed}"
-    )
-    print(f"{'Object':18s} {'ours (%)':>9s} {'range':>11s} {'paper (%)':>10s} {'mean S_G':>9s}")
-    for name, r in rows.items():
-        spread = "" if "spread" not in r else f"{r['spread'][0]:.1f}-{r['spread'][1]:.1f}"
-        label = PAPER_LABELS[name] + (" *" if name in FAMILY_OBJECTS else "")
-        print(
-            f"{label:18s} {r['failure']:9.2f} {spread:>11s} {PAPER_TABLE1_KB[name]:10.2f} "
-            f"{r['mean_s_g']:9.3f}"
-        )
-    avg = average_failure(rows)
-    print(f"{'Average':18s} {avg:9.2f} {'':>11s} {PAPER_TABLE1_AVERAGE['kb']:10.2f}")
-    print(f"({elapsed:.2f} s)")
-    _write_json(args.json, {"rows": rows, "average_failure": avg, "seconds": elapsed})
-    return 0
-
-
-def cmd_reproduce(args: argparse.Namespace) -> int:
-    from controllers.grasp.reproduce import ReproduceConfig, reproduce
-
-    cli.prepare_dir(args.out, "--out")
-    extra = {"workers": args.workers, "command": f"{PROG} {args.argv}"}
-    if args.seeds is not None:
-        extra["seeds"] = args.seeds
-    cfg = ReproduceConfig.quick_run(**extra) if args.quick else ReproduceConfig.paper(**extra)
-    with cli.partial_results_in(args.out):
-        res = reproduce(args.out, config=cfg)
-    avg = {k: res["tables"][k]["average_failure"]["mean"] for k in ("kb", "ql", "pi", "pi5")}
-    held = res["general"]["heldout"]
-    print(
-        f"average failure (%) over seeds {','.join(map(str, cfg.seeds))}: kb {avg['kb']:.2f}, "
-        f"ql {avg['ql']:.2f}, pi {avg['pi']:.2f}, pi (5 objects) {avg['pi5']:.2f}; held-out "
-        f"polygons: kb {held['kb']['failure']['mean']:.2f}, general pi "
-        f"{held['general']['failure']['mean']:.2f}; report: {args.out / 'report.md'}"
-    )
-    return 0
-
-
-def object_list(text: str) -> tuple[str, ...]:
-    """``--objects``: ``all`` or paper object names, comma-separated, each once."""
-    if text == "all":
-        return PAPER_OBJECTS
-    names = tuple(x.strip() for x in text.split(","))
-    bad = [n for n in names if n not in PAPER_OBJECTS]
-    if bad or len(set(names)) != len(names) or not names:
-        raise argparse.ArgumentTypeError(
-            f"unknown or repeated object in {text!r}; valid: all or a comma-separated list of "
-            f"{', '.join(PAPER_OBJECTS)}"
-        )
-    return names
-
-
-def cmd_physics(args: argparse.Namespace) -> int:
-    # lazy: the physical study needs MuJoCo and the hand, which the grasp core does not import
-    from controllers.physics_report import QUICK_GRASPS, QUICK_OBJECTS, run_study, write_report
-
-    cli.prepare_dir(args.out, "--out")
-    objects = QUICK_OBJECTS if args.quick and args.objects is None else args.objects
-    objects = PAPER_OBJECTS if objects is None else objects
-    grasps = QUICK_GRASPS if args.quick and args.grasps is None else (args.grasps or 50)
-    total = len(objects) * 3 * grasps
-    from tqdm import tqdm
-
-    t0 = time.perf_counter()
-    with (
-        cli.partial_results_in(args.out),
-        tqdm(total=total, unit="grasp", disable=not sys.stderr.isatty()) as bar,
-    ):
-        results = run_study(objects, grasps, args.seed, args.workers, progress=bar.update)
-        summary = write_report(
-            args.out,
-            results,
-            objects,
-            grasps,
-            args.seed,
-            f"{PROG} {args.argv}",
-            time.perf_counter() - t0,
-        )
-    print(
-        f"{total} grasps, {summary['tested']} tested physically, {summary['held']} held; "
-        f"AUC of S_G {summary['auc']:.3f}, best threshold {summary['best_threshold']:.3f} "
-        f"(paper 0.4); {summary['seconds']:.0f} s; report: {args.out / 'report.md'}"
-    )
-    return 0
-
-
-def seed_list(text: str) -> tuple[int, ...]:
-    """``--seeds``: distinct integers 0..SEED_MAX, comma-separated, at most MAX_SEEDS."""
-    parse = cli.seed
-    try:
-        seeds = tuple(parse(x) for x in text.split(","))
-    except argparse.ArgumentTypeError as e:
-        raise argparse.ArgumentTypeError(f"{e} (seeds are written like 0,1,2)") from None
-    if len(set(seeds)) != len(seeds) or len(seeds) > MAX_SEEDS:
-        raise argparse.ArgumentTypeError(
-            f"must be 1..{MAX_SEEDS} distinct seeds like 0,1,2, got {text!r}"
-        )
-    return seeds
-
-
 def build_parser() -> cli.ArgumentParser:
     p = cli.ArgumentParser(
         prog=PROG,
-        description="The grasp controller of Coelho & Grupen on planar polygons: grasp trials, "
-        "the S_G score of contact points, Table 1, and every experiment of the paper. "
+        description="The grasp controller of Coelho & Grupen on planar polygons: grasp trials "
+        "and the S_G score of contact points (the paper's experiments: python -m "
+        "experiments.paper). "
         "`python -m controllers.grasp COMMAND --help` shows a command's flags. Bad input is one "
         "line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
     )
@@ -376,90 +260,6 @@ def build_parser() -> cli.ArgumentParser:
     )
     s.set_defaults(func=cmd_score)
 
-    tb = sub.add_parser(
-        "table1",
-        help="knowledge-based column of Table 1 beside the paper's",
-        description="knowledge-based column of Table 1 beside the paper's",
-    )
-    tb.add_argument(
-        "--trials", type=trials, default=200, help=f"trials per object, 1..{MAX_TRIALS}"
-    )
-    tb.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
-    tb.add_argument("--gain", type=gain, default=GAIN, help=gain_help)
-    tb.add_argument(
-        "--json",
-        type=cli.out_file(".json"),
-        metavar="FILE",
-        help="write the rows to this JSON file",
-    )
-    tb.set_defaults(func=cmd_table1)
-
-    r = sub.add_parser(
-        "reproduce",
-        help="train and test every learned controller; write report, figures, models",
-        description="Every experiment of the paper (Tables 1-2, the noise readings, section 2, "
-        "Appendix A, figures) and PI on held-out polygons, over several seeds: train and test "
-        "every learned controller and write report.md, results.json, the figures and the "
-        "trained models into --out. About 13 CPU-minutes: 7 minutes on 2 idle cores "
-        "(--quick: under one).",
-    )
-    r.add_argument(
-        "--out",
-        required=True,
-        type=cli.out_dir,
-        metavar="DIR",
-        help="output folder (report.md, results.json, PNGs, models); a finished run is marked "
-        "in results.json",
-    )
-    r.add_argument(
-        "--quick", action="store_true", help="reduced sizes for CI (well under a minute)"
-    )
-    r.add_argument(
-        "--seeds",
-        type=seed_list,
-        metavar="S,S,...",
-        help=f"seeds, 0..{cli.SEED_MAX}; tables are mean +- sd over them "
-        "(default 0,1,2; with --quick 0)",
-    )
-    r.add_argument(
-        "--workers",
-        type=cli.integer(1, MAX_WORKERS),
-        default=2,
-        help=f"worker processes, 1..{MAX_WORKERS}",
-    )
-    r.set_defaults(func=cmd_reproduce)
-
-    ph = sub.add_parser(
-        "physics",
-        help="does S_G predict a physical grasp? grasps tested in MuJoCo",
-        description="The physical grasp study: N grasps per object and controller (kb, ql, pi) "
-        "from random initial contacts, taken by the simulated hand, squeezed, then pushed with "
-        "m*g along +-x, +-y, +-z (2 s each) and lifted 10 cm; report.md with physical success "
-        "per controller and object, the ROC and AUC of S_G and pictures of dropped grasps. "
-        "About 10 minutes on 2 cores at the default size (--quick: about a minute).",
-    )
-    ph.add_argument("--out", required=True, type=cli.out_dir, metavar="DIR", help="output folder")
-    ph.add_argument(
-        "--objects",
-        type=object_list,
-        metavar="all|NAME,...",
-        help="paper objects (default all; with --quick trapezoid,irregular_hexagon)",
-    )
-    ph.add_argument(
-        "--grasps",
-        type=cli.integer(1, 10_000),
-        metavar="N",
-        help="grasps per object and controller, 1..10000 (default 50; with --quick 4)",
-    )
-    ph.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
-    ph.add_argument(
-        "--workers",
-        type=cli.integer(1, MAX_WORKERS),
-        default=2,
-        help=f"worker processes, 1..{MAX_WORKERS}",
-    )
-    ph.add_argument("--quick", action="store_true", help="two objects, 4 grasps each (tests)")
-    ph.set_defaults(func=cmd_physics)
     return p
 
 
@@ -471,4 +271,4 @@ def _run(argv: Sequence[str] | None) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=ERRORS)

@@ -20,7 +20,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
-from controllers.grasp.files import write_text
 from controllers.grasp.objects import ObjectSet
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.qlearning import (
@@ -33,6 +32,7 @@ from controllers.grasp.qlearning import (
     scaled_error,
 )
 from controllers.grasp.trials import GAIN, PolygonBatch, run_trials
+from graspsim_base.files import write_text
 
 #: Network shape of section 4.3: two state inputs, three hidden units, one output.
 N_INPUTS, N_HIDDEN, N_OUTPUTS = 2, 3, 1

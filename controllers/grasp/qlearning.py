@@ -21,12 +21,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
-from controllers.grasp.files import atomic_path
 from controllers.grasp.objects import ObjectSet
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.run_folder import TRAIN_HINT
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import GAIN, PolygonBatch, run_trials
+from graspsim_base.files import atomic_path
 
 #: Eq. 14: eps' = LOG_SCALE * log10(max(EPS_FLOOR, eps) / EPS_FLOOR). The paper writes "log";
 #: its example (eps = 1 gives eps' = 29) fixes the base: 14.5 * log10(100) = 29 (ln: 66.8).

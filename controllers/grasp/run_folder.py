@@ -3,7 +3,7 @@
 A run marks its folder unfinished before it writes anything (``results.json`` holds only
 ``{"run": {"seed": S, "finished": false}}``) and finished as its very last write: ``results.json``
 with ``run = {"seed": S, "finished": true, "models": {file: SHA-256}}``. Every file is written
-atomically (:mod:`controllers.grasp.files`), so an interrupted run leaves the unfinished mark, and
+atomically (:mod:`graspsim_base.files`), so an interrupted run leaves the unfinished mark, and
 a model file that a later, interrupted run replaced no longer matches the recorded hash.
 :func:`check_finished_run` refuses both, saying why.
 """
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from controllers.grasp.errors import RunFolderError
-from controllers.grasp.files import sha256_of, write_text
+from graspsim_base.files import sha256_of, write_text
 
 #: The results file; it carries the run's mark.
 RESULTS_FILE = "results.json"

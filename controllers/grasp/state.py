@@ -3,15 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.grasp.polygon import ContactFrames
-
-if TYPE_CHECKING:
-    from controllers.grasp.trials import PolygonBatch
+from controllers.grasp.polygon_batch import PolygonBatch
 
 
 @dataclass(frozen=True)

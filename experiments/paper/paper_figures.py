@@ -1,5 +1,5 @@
 """The paper's figures from a ``reproduce`` run (first seed): Figures 1, 2, 7, 9, 10, 11, 12, 17
-and 18, assembled from the building blocks of :mod:`controllers.grasp.figures`."""
+and 18, assembled from the building blocks of :mod:`experiments.paper.figures`."""
 
 from __future__ import annotations
 
@@ -9,15 +9,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.grasp import figures as fig
 from controllers.grasp.atomic import TEST_ROTATION_DEG, sector_angle
-from controllers.grasp.experiments import PAPER_TABLE1_AVERAGE
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.optimal_control import BETA, PAPER_THETA_T, OptimalPath
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.qlearning import scaled_error, state_bin
 from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.trials import TrialBatch
+from experiments.paper import figures as fig
+from experiments.paper.tables import PAPER_TABLE1_AVERAGE
 
 #: Two final contacts are "the same configuration" (Figure 12) when on the same edge with surface
 #: coordinates (unit-moment frame) in the same bin of this width.

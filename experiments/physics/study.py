@@ -5,11 +5,11 @@ One grasp, start to end (:func:`test_grasp`):
 1. synthesis: a :class:`~controllers.grasp.session.GraspSynthesis` (KB, QL or PI, section 3.6)
    from four contacts drawn uniformly in theta, run to convergence or its step limit, with the
    task cycle's pad spacing (``min_separation``); its S_G is the verdict under test;
-2. placement (:mod:`controllers.hand_placement`): the task cycle's Posture Control (arm and hand
-   IK) started from palm-down postures over the block finds an arm posture, palm within 12 deg
-   of vertical, from which the task cycle's reach test passes; the fingers' pre-contact postures
-   from :func:`controllers.grip.plan_grip`. The arm and hand are set there (not driven: the
-   approach is not under test) and the servos hold them. A grasp no start reaches is
+2. placement (:mod:`experiments.physics.hand_placement`): the task cycle's Posture Control
+   (arm and hand IK) started from palm-down postures over the block finds an arm posture, palm
+   within 12 deg of vertical, from which the task cycle's reach test passes; the fingers'
+   pre-contact postures from :func:`controllers.grip.plan_grip`. The arm and hand are set there (not
+   driven: the approach is not under test) and the servos hold them. A grasp no start reaches is
    *unreachable*;
 3. the task cycle's Grasp Object: :func:`~controllers.grip.close` with the touch guard, then
    :func:`~controllers.grip.squeeze` to :data:`controllers.grip.GRIP_FORCE` per finger, shared as
@@ -38,11 +38,11 @@ from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import CONTROL_PERIOD, close, plan_grip, squeeze
-from controllers.hand_placement import HandPosture, place_hand, top_postures
 from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism
 from controllers.posture import HandIndices
 from controllers.reach import ReachTarget
 from controllers.transport import lift
+from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
 from hand_sim import robot
 from hand_sim.errors import SimulationError
 from hand_sim.scene import load_scene

@@ -10,17 +10,16 @@ over the observed S_G values, predicting "holds" for S_G <= threshold.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 from collections.abc import Sequence
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from controllers.grasp.files import write_bytes, write_text
 from controllers.grasp.objects import PAPER_OBJECTS
-from controllers.physics_study import (
+from experiments.physics.study import (
     DIRECTIONS,
     FORCE_TIME,
     LIFT_HEIGHT,
@@ -30,6 +29,8 @@ from controllers.physics_study import (
     Job,
     run_job,
 )
+from graspsim_base.files import write_bytes, write_text
+from graspsim_base.pool import map_unordered
 
 #: Controllers of the study (section 3.6.1, 3.6.2, section 4 with the general predictor).
 CONTROLLERS: tuple[str, ...] = ("kb", "ql", "pi")
@@ -122,18 +123,11 @@ def run_study(
     """Every grasp, in a fixed order (object, controller, index) whatever the workers."""
     jobs = jobs_for(objects, grasps, seed)
     results: list[list[dict]] = [[] for _ in jobs]
-    if workers <= 1:
-        for k, job in enumerate(jobs):
-            results[k] = run_job(job)
+    with closing(map_unordered(run_job, jobs, workers)) as finished:
+        for k, res in finished:
+            results[k] = res
             if progress is not None:
-                progress(len(results[k]))
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ctx.Pool(min(workers, len(jobs))) as pool:
-            for k, res in enumerate(pool.imap(run_job, jobs)):
-                results[k] = res
-                if progress is not None:
-                    progress(len(res))
+                progress(len(res))
     return [r for chunk in results for r in chunk]
 
 

@@ -54,23 +54,6 @@ FAMILY_TRIALS = 100
 SPREAD = (5.0, 95.0)
 
 
-def trial_summary(result: TrialBatch, seconds: float | None = None) -> dict:
-    """Failure rate, mean S_G over feasible grasps, mean steps (and trials/s) of a batch."""
-    feasible = result.s_g[result.feasible]
-    out = {
-        "trials": int(result.success.size),
-        "failure_rate": result.failure_rate,
-        "mean_s_g": float(feasible.mean()) if feasible.size else float("nan"),
-        "infeasible": int((~result.feasible).sum()),
-        "mean_steps": float(result.steps.mean()),
-        "converged": float(result.converged.mean()),
-    }
-    if seconds is not None:
-        out["seconds"] = seconds
-        out["trials_per_s"] = result.success.size / seconds if seconds > 0 else float("inf")
-    return out
-
-
 @dataclass(frozen=True)
 class TrialSet:
     """Trials of a test: which polygon each grasps (flat index into ``objects.polygons``) and

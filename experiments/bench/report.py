@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from controllers.grasp.files import atomic_path, write_text
-from fsm.bench_stats import BenchSummary, seed_ranges, summarize, wilson_interval
+from experiments.bench.stats import BenchSummary, seed_ranges, summarize, wilson_interval
 from fsm.judge import PLACE_TOLERANCE
+from graspsim_base.files import atomic_path, write_text
 
 REPORT_FILE = "report.md"
 FIGURES = {
@@ -130,7 +130,7 @@ def plot_wall_per_state(s: BenchSummary, path: Path) -> None:
 
 def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
     lo, hi = min(seeds), max(seeds) + 1
-    parts = ["python -m fsm.bench", f"--scene {settings['scene']}", f"--seeds {lo}:{hi}"]
+    parts = ["python -m experiments.bench", f"--scene {settings['scene']}", f"--seeds {lo}:{hi}"]
     if settings.get("blocks"):
         parts.append(f"--blocks {settings['blocks']}")
     parts += [f"--controller {settings['controller']}", f"--approach {settings['approach']}"]

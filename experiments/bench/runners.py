@@ -1,7 +1,7 @@
 """Where the bench's episodes run: in this process, in a pool of processes on this machine, or on
-a Ray cluster. Each runner takes :class:`fsm.bench_jobs.Job` s and yields their
-:class:`fsm.bench_jobs.JobResult` s as they finish (in any order); every runner runs the same
-:func:`fsm.bench_jobs.run_job`, so a seed's episode does not depend on where it ran.
+a Ray cluster. Each runner takes :class:`experiments.bench.jobs.Job` s and yields their
+:class:`experiments.bench.jobs.JobResult` s as they finish (in any order); every runner runs the
+same :func:`experiments.bench.jobs.run_job`, so a seed's episode does not depend on where it ran.
 
 - :class:`InProcess`: one episode after another, here (``--workers 1``).
 - :class:`ProcessPool`: ``--workers N`` processes started with the ``spawn`` method (a ``fork``ed
@@ -16,57 +16,28 @@ lost and are run again by ``--resume``.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
-import signal
 from collections.abc import Iterable, Iterator
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from contextlib import contextmanager
 from typing import Any
 
-from fsm.bench_jobs import Job, JobResult, run_job
+from experiments.bench.jobs import Job, JobResult, run_job
+from graspsim_base.pool import ONE_THREAD_ENV, map_unordered, one_thread_env
+from graspsim_base.pool import WorkerLostError as PoolWorkerLostError
 
-#: Environment of the workers: one thread per math library (OpenBLAS, OpenMP, MKL), headless
-#: rendering through EGL (STACK: osmesa does not work here). The user's own values win.
-WORKER_ENV = {
-    "OMP_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-    "MUJOCO_GL": "egl",
-}
+#: Environment of the workers: one thread per math library, headless rendering through EGL
+#: (osmesa does not work here). The user's own values win.
+WORKER_ENV = {**ONE_THREAD_ENV, "MUJOCO_GL": "egl"}
 #: ``--ray`` value that starts a private Ray instance on this machine with ``--workers`` CPUs.
 RAY_LOCAL = "local"
 
 
 class WorkerLostError(RuntimeError):
-    """A worker process died (killed, out of memory, crashed in native code)."""
+    """A worker process died, or a Ray task failed, under an episode."""
 
 
 def worker_env() -> dict[str, str]:
     """:data:`WORKER_ENV` with the variables already set in this process kept as they are."""
-    return {k: os.environ.get(k, v) for k, v in WORKER_ENV.items()}
-
-
-@contextmanager
-def _environment(values: dict[str, str]) -> Iterator[None]:
-    """Set ``values`` in ``os.environ`` inside the block (children started in it inherit them),
-    then restore what was there."""
-    before = {k: os.environ.get(k) for k in values}
-    os.environ.update(values)
-    try:
-        yield
-    finally:
-        for k, v in before.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-def _ignore_sigint() -> None:
-    """Pool worker initializer: Ctrl-C is the bench's to handle (it stops the workers); a worker
-    that caught it would print a traceback and leave the pool broken."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return one_thread_env(WORKER_ENV)
 
 
 class InProcess:
@@ -86,56 +57,32 @@ class InProcess:
 
 
 class ProcessPool:
-    """Run the episodes in ``workers`` processes of this machine (``spawn`` start method)."""
+    """Run the episodes in ``workers`` processes of this machine (:mod:`graspsim_base.pool`)."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
-        self._executor: ProcessPoolExecutor | None = None
+        self._results: Iterator[tuple[int, JobResult]] | None = None
 
     def __enter__(self) -> ProcessPool:
-        self._executor = ProcessPoolExecutor(
-            max_workers=self.workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_ignore_sigint,
-        )
         return self
 
     def __exit__(self, *exc: object) -> None:
-        executor, self._executor = self._executor, None
-        if executor is None:
-            return
-        if exc[0] is None:
-            executor.shutdown(wait=True)
-            return
-        # an error or Ctrl-C: drop the queued episodes and stop the running ones now
-        processes = list(getattr(executor, "_processes", {}).values())
-        executor.shutdown(wait=False, cancel_futures=True)
-        for p in processes:
-            if p.is_alive():
-                p.terminate()
-        for p in processes:
-            p.join(timeout=10)
+        # an error or Ctrl-C: closing the pool's iterator stops its workers now
+        results, self._results = self._results, None
+        if results is not None:
+            results.close()  # type: ignore[attr-defined]
 
     def run(self, jobs: Iterable[Job]) -> Iterator[JobResult]:
-        if self._executor is None:
-            raise RuntimeError("use the pool inside its with block")
-        # every job is queued at once; the workers are started by the first submissions, with
-        # their environment
-        with _environment(worker_env()):
-            pending: dict[Future[JobResult], Job] = {
-                self._executor.submit(run_job, job): job for job in jobs
-            }
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                job = pending.pop(future)
-                try:
-                    yield future.result()
-                except Exception as e:  # BrokenProcessPool: a worker died under this job
-                    raise WorkerLostError(
-                        f"a worker process died while running seed {job.seed} ({e}); "
-                        "run again with --resume to continue"
-                    ) from e
+        queued = list(jobs)
+        self._results = map_unordered(run_job, queued, max(self.workers, 2), worker_env())
+        try:
+            for _, result in self._results:
+                yield result
+        except PoolWorkerLostError as e:
+            raise WorkerLostError(
+                f"a worker process died while running seed {queued[e.index].seed} "
+                f"({e.__cause__}); run again with --resume to continue"
+            ) from e
 
 
 class RayCluster:
@@ -158,7 +105,7 @@ class RayCluster:
         env = worker_env()
         if self.address == RAY_LOCAL:
             # the local workers import this checkout's code, as this process does
-            root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+            root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
             path = os.environ.get("PYTHONPATH")
             env["PYTHONPATH"] = root if not path else os.pathsep.join([root, path])
         kwargs: dict[str, Any] = {

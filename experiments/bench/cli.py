@@ -1,5 +1,5 @@
-"""``python -m fsm.bench``: many task-cycle episodes (section 5.2, one pick and place each) run
-headless and in parallel, with a report of how often and why they fail.
+"""``python -m experiments.bench``: many task-cycle episodes (section 5.2, one pick and place
+each) run headless and in parallel, with a report of how often and why they fail.
 
 Each seed is one episode on a fresh scene (``--scene random``: drawn from the seed, with a block
 count drawn per seed from ``--blocks LO:HI``), run with the same code and options as
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fsm.bench_jobs import (
+from experiments.bench.jobs import (
     RESULTS_FILE,
     BenchError,
     Job,
@@ -41,7 +41,7 @@ from fsm.bench_jobs import (
     drop_torn_tail,
     read_results,
 )
-from fsm.bench_pool import RAY_LOCAL
+from experiments.bench.runners import RAY_LOCAL
 from fsm.run import add_controller_and_approach
 from hand_sim.clitools import (
     ERRORS,
@@ -58,7 +58,7 @@ from hand_sim.clitools import (
 )
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 
-PROG = "python -m fsm.bench"
+PROG = "python -m experiments.bench"
 #: File of the options a bench folder's results belong to.
 SETTINGS_FILE = "bench.json"
 #: Options that must match for ``--resume`` to add to a folder's results.
@@ -287,7 +287,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
 
 def _enter_runner(stack: ExitStack, plan: Plan) -> Any:
     """Start where the episodes run (a Ray that cannot be started or reached is bad input)."""
-    from fsm.bench_pool import open_runner
+    from experiments.bench.runners import open_runner
 
     try:
         return stack.enter_context(open_runner(plan.workers, plan.ray))
@@ -308,8 +308,8 @@ def _run_jobs(plan: Plan, lines: list[dict[str, Any]]) -> None:
     ``lines``) and keeping its recording when it is returned."""
     from tqdm import tqdm
 
-    from controllers.grasp.files import write_bytes, write_text
-    from fsm.bench_jobs import append_line
+    from experiments.bench.jobs import append_line
+    from graspsim_base.files import write_bytes, write_text
 
     results = plan.out / RESULTS_FILE
     ok = sum(1 for line in lines if line["seed"] in plan.seeds and line.get("success"))
@@ -350,9 +350,9 @@ def _run_jobs(plan: Plan, lines: list[dict[str, Any]]) -> None:
 
 def run(argv: Sequence[str] | None) -> int:
     plan = plan_from_args(argv)
-    from fsm.bench_pool import WorkerLostError
-    from fsm.bench_report import write_report
-    from fsm.bench_stats import summarize
+    from experiments.bench.report import write_report
+    from experiments.bench.runners import WorkerLostError
+    from experiments.bench.stats import summarize
 
     lines = list(plan.done)
     wall0 = time.perf_counter()

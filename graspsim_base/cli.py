@@ -1,5 +1,6 @@
-"""Command-line plumbing shared by every graspsim command (this package's, ``hand_sim``'s,
-``vision``'s, the benchmarks', ``fsm``'s; the others reach it through ``hand_sim.clitools``).
+"""Command-line plumbing shared by every graspsim command (``controllers.grasp``'s, ``hand_sim``'s,
+``vision``'s, ``fsm``'s, the experiments' and the benchmarks'; the simulation's commands reach it
+through ``hand_sim.clitools``, which adds the simulation's errors).
 
 The promise each command keeps:
 - bad input is one line on stderr, ``<prog>: <flag or field>: <problem and what to do>``, exit
@@ -8,7 +9,7 @@ The promise each command keeps:
   :func:`prepare_dir` / :func:`prepare_file` before any work starts;
 - Ctrl-C is one line, ``<prog>: interrupted; partial results in DIR`` (or ``nothing was
   written``), exit status 130; a second Ctrl-C while the command cleans up is ignored;
-- result files are written atomically (:mod:`controllers.grasp.files`).
+- result files are written atomically (:mod:`graspsim_base.files`).
 
 Use: ``main(argv)`` builds an :class:`ArgumentParser`, parses, checks paths and runs; the module's
 ``__main__`` calls ``sys.exit(run_main(lambda: main(argv), prog=PROG, errors=ERRORS))``, or
@@ -30,8 +31,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from controllers.grasp.errors import GraspError
-
 EXIT_BAD_INPUT = 2
 #: 128 + SIGINT, what shells report for a command stopped by Ctrl-C.
 EXIT_INTERRUPTED = 130
@@ -42,8 +41,9 @@ SEED_MAX = 2**32 - 1
 #: option: ``--points -0.01,0.02;...``, ``--pick-pixel -1,-1`` (argparse alone accepts only a
 #: lone negative number such as ``-1`` or ``-0.5``).
 NEGATIVE_NUMBER = re.compile(r"^-\.?\d")
-#: Errors this package's commands report as bad input.
-ERRORS: tuple[type[BaseException], ...] = (GraspError,)
+#: Errors every command reports as bad input besides :class:`CommandLineError` (a package adds
+#: its own: ``controllers.grasp.cli.ERRORS``, ``hand_sim.clitools.ERRORS``...).
+ERRORS: tuple[type[BaseException], ...] = ()
 
 
 class CommandLineError(ValueError):

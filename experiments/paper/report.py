@@ -10,8 +10,8 @@ import numpy as np
 from controllers.grasp.atomic import PAPER_ATOMIC
 from controllers.grasp.objects import FAMILY_OBJECTS, PAPER_LABELS, PAPER_OBJECTS
 from controllers.grasp.optimal_control import PAPER_THETA_T
-from controllers.grasp.paper_figures import FIGURES
 from controllers.grasp.preimaging import NOISE_BOUND, NOISE_READINGS, NOISE_SIGMA
+from experiments.paper.paper_figures import FIGURES
 
 QUICK_NOTE = " QUICK run: reduced sizes, not comparable with the paper."
 #: Table columns: result key, label, paper column.

@@ -8,7 +8,7 @@ then once more with R = +-10 when the trial is over, both with the update equati
 to use the machine, ``learners`` independent learners (own Q-table, own draws) run side by side,
 one trial of each per batch, so they never see each other's updates.
 
-``python -m controllers.grasp.qlcheck --out DIR [--learners 3] [--epochs 500] [--seed 0]`` trains
+``python -m experiments.paper.qlcheck --out DIR [--learners 3] [--epochs 500] [--seed 0]`` trains
 them, tests each greedily on Table 2's test set and writes ``DIR/qlcheck.json``. It takes about
 half an hour on one core (a step of a one-trial batch costs ~0.3 ms of numpy overhead); it is not
 part of ``reproduce``.
@@ -27,8 +27,6 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.grasp.experiments import average_failure, object_rows, trial_set
-from controllers.grasp.files import write_text
 from controllers.grasp.objects import ObjectSet
 from controllers.grasp.qlearning import (
     ACTIONS,
@@ -47,6 +45,8 @@ from controllers.grasp.qlearning import (
 )
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import PolygonBatch, run_trials
+from experiments.paper.tables import average_failure, object_rows, trial_set
+from graspsim_base.files import write_text
 
 
 @dataclass
@@ -126,7 +126,7 @@ def train_sequential(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m controllers.grasp.qlcheck", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m experiments.paper.qlcheck", description=__doc__)
     p.add_argument("--out", required=True, help="directory for qlcheck.json")
     p.add_argument("--learners", type=int, default=3, help="independent learners (default 3)")
     p.add_argument("--epochs", type=int, default=EPOCHS, help=f"epochs (default {EPOCHS})")

@@ -1,4 +1,5 @@
-"""One episode of ``python -m fsm.bench`` as a job a worker runs, and the results file it feeds.
+"""One episode of ``python -m experiments.bench`` as a job a worker runs, and the results file it
+feeds.
 
 A :class:`Job` is everything a worker needs to run one episode (section 5.2's task cycle, one
 pick and place); :func:`run_job` runs it in a temporary folder and returns the episode's summary

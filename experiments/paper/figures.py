@@ -1,7 +1,7 @@
 """PNG figures of the paper's experiments, drawn with OpenCV (imported lazily; no matplotlib).
 
 Small building blocks (a line plot, a state-space heatmap, grasp configurations on polygons) that
-:mod:`controllers.grasp.reproduce` combines into Figures 1, 7, 9, 10, 11, 12, 17 and 18.
+:mod:`experiments.paper.reproduce` combines into Figures 1, 7, 9, 10, 11, 12, 17 and 18.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.grasp.files import atomic_path
 from controllers.grasp.polygon import Polygon
+from graspsim_base.files import atomic_path
 
 #: Colours (BGR) of plotted series, in order.
 PALETTE = ((200, 80, 20), (30, 30, 220), (40, 150, 40), (150, 50, 150), (0, 140, 230))

@@ -1,7 +1,7 @@
 """Put the hand on synthesized contacts without the task cycle: a top grasp whose arm posture is
 found by the task cycle's Posture Control, started from palm-down postures held over the block.
 
-The physical grasp study (:mod:`controllers.physics_study`) tests many grasps of one block; it
+The physical grasp study (:mod:`experiments.physics.study`) tests many grasps of one block; it
 needs each grasp placed quickly and the same way every time, not the task cycle's reach, so:
 - **seeds**: the palm held :data:`PALM_GAPS` above the block's top, palm down (a top grasp),
   turned about the vertical to one of :data:`YAWS` equally spaced yaws; the arm's IK
