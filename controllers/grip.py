@@ -30,8 +30,9 @@ from controllers.hand_reach import (
     finger_clearance,
     grip_targets,
 )
-from controllers.posture import HandIndices, solve_posture
+from controllers.posture import solve_posture
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Distance (m) of each fingertip outside its contact before closing, and after releasing; a
@@ -145,7 +146,7 @@ def plan_grip(
     qpos = None
     if start is not None:
         qpos = world.data.qpos.copy()
-        qpos[HandIndices.of(world.model if model is None else model).finger_qpos.ravel()] = start
+        qpos[RobotIndices.of(world.model if model is None else model).hand_qpos] = start
     sol_in = solve_posture(
         world,
         inside,
@@ -157,7 +158,7 @@ def plan_grip(
     )
     model = world.model if model is None else model
     data_q = world.data.qpos.copy()
-    finger_qpos = HandIndices.of(model).finger_qpos.ravel()
+    finger_qpos = RobotIndices.of(model).hand_qpos
     data_q[finger_qpos] = sol_in.hand_q
     standoff = np.full(4, PRE_CONTACT)
     while True:
@@ -218,8 +219,9 @@ def backed_off_hand(
     q = np.asarray(qpos, dtype=float)
     direction, rate = normal_squeeze(model, q, np.asarray(normals, dtype=float))
     back = np.broadcast_to(np.asarray(distance, dtype=float), rate.shape) / rate
-    limits = model.jnt_range[[model.joint(robot.qualified(j)).id for j in robot.HAND_JOINTS]]
-    hand = q[HandIndices.of(model).finger_qpos.ravel()]
+    idx = RobotIndices.of(model)
+    limits = model.jnt_range[idx.hand_joints]
+    hand = q[idx.hand_qpos]
     return np.clip(hand - np.repeat(back, robot.JOINTS_PER_FINGER) * direction, *limits.T)
 
 
@@ -233,9 +235,8 @@ def normal_squeeze(
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
-    idx = HandIndices.of(model)
-    actuators = [model.actuator(robot.qualified(a)).id for a in robot.HAND_ACTUATORS]
-    kp = model.actuator_gainprm[actuators, 0].reshape(idx.finger_dofs.shape)
+    idx = RobotIndices.of(model)
+    kp = model.actuator_gainprm[idx.hand_ctrl, 0].reshape(idx.finger_dofs.shape)
     jac = np.zeros((3, model.nv))
     direction = np.zeros(idx.finger_dofs.size)
     rate = np.zeros(len(robot.FINGERS))

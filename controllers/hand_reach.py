@@ -29,9 +29,10 @@ from scipy.optimize import linear_sum_assignment
 
 from controllers.fine_reach import GRASP_DEPTH
 from controllers.finger_samples import Criteria, FingerSamples
-from controllers.posture import HandIndices, solve_posture
+from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Smallest distance (m) between the centres of two fingertip pads on their contacts (a pad's
@@ -258,7 +259,7 @@ def _sampled_start(
         squeeze,
     )
     out = qpos.copy()
-    adr = HandIndices.of(model).finger_qpos
+    adr = RobotIndices.of(model).finger_qpos
     # sliding contacts prefer the palm's height: opposed fingers then press at one height
     prefer = float(p0[2]) if heights is not None else None
     for f in range(len(robot.FINGERS)):
@@ -331,7 +332,7 @@ def check_reach(
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     data = mujoco.MjData(model)
     data.qpos[:] = start
-    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = sol.hand_q
+    data.qpos[RobotIndices.of(model).hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)
     cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))
