@@ -28,7 +28,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from controllers.fine_reach import GRASP_DEPTH
-from controllers.finger_samples import Criteria, FingerSamples
+from controllers.finger_samples import (
+    PAD_NORMAL_LOCAL,
+    POINTS_PER_LINK,
+    Criteria,
+    FingerSamples,
+)
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -61,11 +66,6 @@ MAX_PAD_SIDEWAYS = 0.8
 MIN_PAD_PALMAR = 0.2
 #: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
 MAX_LINK_PENETRATION = 0.0015
-#: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
-#: towards the tip (+y) (models/hand.xml).
-PAD_NORMAL_LOCAL = np.array([0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)])
-#: Points sampled along each finger capsule's axis for the penetration test.
-POINTS_PER_LINK = 7
 #: Hand IK iterations of the reachability check.
 IK_ITERATIONS = 250
 #: The fingers must reach this far (m) into the block past each contact point: a squeeze is a

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
+from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
 from hand_sim.indices import RobotIndices
@@ -444,9 +445,11 @@ def world_log_manipulability(world: World) -> float:
     return log_manipulability(model, data, RobotIndices.of(model))
 
 
-#: Time (s) over which servo targets move to a new posture, and the settling time after it.
+#: Time (s) over which servo targets move to a new posture (then they settle for
+#: :data:`controllers.timing.SERVO_SETTLE_TIME`).
 MOVE_TIME = 1.0
-SETTLE_TIME = 0.5
+#: The settling time under the name the task cycle imports (fsm.handlers).
+SETTLE_TIME = SERVO_SETTLE_TIME
 #: A pad pressing on something with more than this (N) is in contact (see :func:`apply_posture`).
 CONTACT_FORCE = 0.05
 #: Steady-state servo error corrections after a move (see :func:`apply_posture`).
@@ -458,7 +461,7 @@ def apply_posture(
     result: PostureResult,
     *,
     move_time: float = MOVE_TIME,
-    settle: float = SETTLE_TIME,
+    settle: float = SERVO_SETTLE_TIME,
     corrections: int = SERVO_CORRECTIONS,
 ) -> NDArray[np.float64]:
     """Move the arm and hand servos to ``result``'s posture over ``move_time`` s along the IK's own
