@@ -28,12 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from controllers.fine_reach import GRASP_DEPTH
-from controllers.finger_samples import (
-    PAD_NORMAL_LOCAL,
-    POINTS_PER_LINK,
-    Criteria,
-    FingerSamples,
-)
+from controllers.finger_samples import PAD_NORMAL_LOCAL, POINTS_PER_LINK, Criteria, FingerSamples
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot

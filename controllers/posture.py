@@ -75,9 +75,7 @@ PALM_DISTANCE = 0.003
 CLEARANCE_SLACK = 0.001
 
 
-#: The robot's addresses in a world model, under the name the task cycle imports
-#: (``tip_sites``, ``finger_dofs``, ``finger_qpos``, ``arm_dofs``...): see
-#: :class:`hand_sim.indices.RobotIndices`.
+#: :class:`hand_sim.indices.RobotIndices` under the name the task cycle imports (fsm.handlers).
 HandIndices = RobotIndices
 
 
@@ -446,9 +444,8 @@ def world_log_manipulability(world: World) -> float:
 
 
 #: Time (s) over which servo targets move to a new posture (then they settle for
-#: :data:`controllers.timing.SERVO_SETTLE_TIME`).
+#: :data:`controllers.timing.SERVO_SETTLE_TIME`, imported by fsm.handlers as SETTLE_TIME).
 MOVE_TIME = 1.0
-#: The settling time under the name the task cycle imports (fsm.handlers).
 SETTLE_TIME = SERVO_SETTLE_TIME
 #: A pad pressing on something with more than this (N) is in contact (see :func:`apply_posture`).
 CONTACT_FORCE = 0.05
