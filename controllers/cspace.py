@@ -21,6 +21,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import ReachError
 from hand_sim import robot
+from hand_sim.errors import SimulationError
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Collision bits of the planning model: arm links, hand links, everything else, the robot's
@@ -77,14 +79,6 @@ def _body_kind(model: mujoco.MjModel, body: int) -> str:
     return "env"
 
 
-def _joint_ids(model: mujoco.MjModel, names: tuple[str, ...]) -> NDArray[np.int64]:
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, robot.qualified(n)) for n in names]
-    missing = [n for n, i in zip(names, ids, strict=True) if i < 0]
-    if missing:
-        raise ReachError(f"the world model lacks the joints {missing}")
-    return np.array(ids)
-
-
 def rotation_error(R_target: NDArray[np.float64], R: NDArray[np.float64]) -> NDArray[np.float64]:
     """World-frame rotation vector taking ``R`` to ``R_target``."""
     quat = np.empty(4)
@@ -127,12 +121,14 @@ class CollisionChecker:
         self.model = copy.deepcopy(world.model if model is None else model)
         self.data = mujoco.MjData(self.model)
         self.data.qpos[:] = world.data.qpos
-        arm_j = _joint_ids(self.model, robot.ARM_JOINTS)
-        hand_j = _joint_ids(self.model, robot.HAND_JOINTS)
-        self._arm_qpos = self.model.jnt_qposadr[arm_j]
-        self._arm_dof = self.model.jnt_dofadr[arm_j]
-        self._hand_qpos = self.model.jnt_qposadr[hand_j]
-        self.arm_limits = self.model.jnt_range[arm_j].copy()
+        try:
+            idx = RobotIndices.of(self.model)
+        except SimulationError as e:
+            raise ReachError(str(e)) from e
+        self._arm_qpos = idx.arm_qpos
+        self._arm_dof = idx.arm_dof
+        self._hand_qpos = idx.hand_qpos
+        self.arm_limits = self.model.jnt_range[idx.arm_joints].copy()
         self.palm_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, PALM_SITE)
         if self.palm_site < 0:
             raise ReachError(f"the world model has no site {PALM_SITE!r}")

@@ -21,6 +21,7 @@ from controllers.errors import ReachError
 from controllers.harmonic import GridSpec, HarmonicField, Interpolator, solve_harmonic
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
+from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
 from hand_sim.world import World
@@ -47,9 +48,8 @@ TOUCH_STANDOFF = 0.001
 TOUCH_GUARD = 0.05
 #: Within this distance (m) of its target a fingertip moves straight at it.
 FINAL_APPROACH = 0.02
-#: Fingertip step (m) per control period, control period (s), IK iterations per period.
+#: Fingertip step (m) and IK iterations per control period.
 TIP_STEP = 0.002
-CONTROL_PERIOD = 0.02
 IK_ITERATIONS = 8
 #: Default acceptance (m): every fingertip this close to its target ends the reach.
 DEFAULT_TOLERANCE = 0.005
@@ -272,7 +272,7 @@ def fine_reach(
     )
     goals = targets.points + standoff * targets.normals
     stopped = np.zeros(len(tips), dtype=bool)
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     depth, others = 0.0, set()
     periods = 0
     for _ in range(round(max_time / CONTROL_PERIOD)):

@@ -27,14 +27,15 @@ from hand_sim.resources import models_dir
 #: Finger postures sampled (uniform in the joint ranges) and the generator's seed.
 SAMPLES = 20_000
 SEED = 0
-#: Points sampled along each proximal and middle capsule's axis.
+#: Points sampled along each finger link capsule's axis for the link-penetration tests (here and
+#: in :func:`controllers.hand_reach.link_penetration`).
 POINTS_PER_LINK = 7
 #: A sample's height preference (:meth:`FingerSamples.best`): every HEIGHT_SCALE (m) between its
 #: contact's height and the preferred one counts as much as the whole margin of one criterion.
 HEIGHT_SCALE = 0.05
-#: Default pad normal in a distal link's frame: 30 deg from the palmar normal (+z) towards the
-#: tip (+y), where the tip site sits (models/hand.xml).
-PAD_NORMAL = (0.0, 0.5, 0.8660254037844386)
+#: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
+#: towards the tip (+y) (models/hand.xml).
+PAD_NORMAL_LOCAL = np.array([0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)])
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ class FingerSamples:
         cls,
         n: int = SAMPLES,
         seed: int = SEED,
-        pad_normal_local: ArrayLike = PAD_NORMAL,
+        pad_normal_local: ArrayLike = PAD_NORMAL_LOCAL,
     ) -> FingerSamples:
         """Sample ``n`` hand postures uniformly in the joint ranges of ``models/hand.xml``
         (generator seeded with ``seed``); ``pad_normal_local`` is the pad normal in a distal

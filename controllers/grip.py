@@ -30,8 +30,10 @@ from controllers.hand_reach import (
     finger_clearance,
     grip_targets,
 )
-from controllers.posture import HandIndices, solve_posture
+from controllers.posture import solve_posture
+from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Distance (m) of each fingertip outside its contact before closing, and after releasing; a
@@ -41,8 +43,6 @@ PRE_CONTACT = 0.012
 PRE_CLEARANCE = 0.003
 PRE_CONTACT_STEP = 0.004
 MAX_PRE_CONTACT = 0.024
-#: Control period (s) of the grip primitives.
-CONTROL_PERIOD = 0.02
 #: Closing speed: progress per second along the pre-contact-to-inside line (1 = the whole line;
 #: PRE_CONTACT + SQUEEZE_REACH = 18 mm, so about 18 mm/s at the fingertip).
 CLOSE_RATE = 1.0
@@ -145,7 +145,7 @@ def plan_grip(
     qpos = None
     if start is not None:
         qpos = world.data.qpos.copy()
-        qpos[HandIndices.of(world.model if model is None else model).finger_qpos.ravel()] = start
+        qpos[RobotIndices.of(world.model if model is None else model).hand_qpos] = start
     sol_in = solve_posture(
         world,
         inside,
@@ -157,7 +157,7 @@ def plan_grip(
     )
     model = world.model if model is None else model
     data_q = world.data.qpos.copy()
-    finger_qpos = HandIndices.of(model).finger_qpos.ravel()
+    finger_qpos = RobotIndices.of(model).hand_qpos
     data_q[finger_qpos] = sol_in.hand_q
     standoff = np.full(4, PRE_CONTACT)
     while True:
@@ -218,8 +218,9 @@ def backed_off_hand(
     q = np.asarray(qpos, dtype=float)
     direction, rate = normal_squeeze(model, q, np.asarray(normals, dtype=float))
     back = np.broadcast_to(np.asarray(distance, dtype=float), rate.shape) / rate
-    limits = model.jnt_range[[model.joint(robot.qualified(j)).id for j in robot.HAND_JOINTS]]
-    hand = q[HandIndices.of(model).finger_qpos.ravel()]
+    idx = RobotIndices.of(model)
+    limits = model.jnt_range[idx.hand_joints]
+    hand = q[idx.hand_qpos]
     return np.clip(hand - np.repeat(back, robot.JOINTS_PER_FINGER) * direction, *limits.T)
 
 
@@ -233,9 +234,8 @@ def normal_squeeze(
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
-    idx = HandIndices.of(model)
-    actuators = [model.actuator(robot.qualified(a)).id for a in robot.HAND_ACTUATORS]
-    kp = model.actuator_gainprm[actuators, 0].reshape(idx.finger_dofs.shape)
+    idx = RobotIndices.of(model)
+    kp = model.actuator_gainprm[idx.hand_ctrl, 0].reshape(idx.finger_dofs.shape)
     jac = np.zeros((3, model.nv))
     direction = np.zeros(idx.finger_dofs.size)
     rate = np.zeros(len(robot.FINGERS))
@@ -296,7 +296,7 @@ def move_hand(world: World, q: ArrayLike, duration: float) -> None:
     """Move the hand's servo targets to ``q`` (16,) along a smooth (cosine) profile."""
     q0 = world.hand_targets()
     q1 = np.asarray(q, dtype=float)
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     n = max(1, round(duration / CONTROL_PERIOD))
     for k in range(1, n + 1):
         s = 0.5 - 0.5 * np.cos(np.pi * k / n)
@@ -317,7 +317,7 @@ class CloseResult:
 def close(world: World, grip: Grip, *, max_time: float = CLOSE_TIME) -> CloseResult:
     """Drive every finger from its pre-contact posture towards the block; a finger stops where its
     pad first feels the block (touch guard). Ends when all four touch or one has overrun."""
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     t0 = world.time
     rate = CLOSE_RATE * CONTROL_PERIOD
     while world.time - t0 < max_time:
@@ -349,7 +349,7 @@ def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> Sque
     """Regulate every finger's force to its own target (its share of the grip) until all are
     within FORCE_TOLERANCE (or FORCE_FLOOR) of it; the fingers' servo targets then stay where
     the squeeze left them (the grip holds as a stiffness while the arm lifts and carries)."""
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     t0 = world.time
     settled_for = 0
     while world.time - t0 < max_time:
@@ -371,7 +371,7 @@ def release(world: World, grip: Grip, *, duration: float = RELEASE_TIME) -> NDAr
     """Open the hand: every finger back along its own line past its pre-contact posture (each
     fingertip moves out along its contact normal, to twice the pre-contact distance, so that no
     finger grazes the block when the hand leaves). Returns the touch forces (4,) afterwards."""
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     start = grip.progress.copy()
     n = max(1, round(duration / CONTROL_PERIOD))
     for k in range(1, n + 1):

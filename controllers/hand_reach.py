@@ -28,10 +28,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from controllers.fine_reach import GRASP_DEPTH
-from controllers.finger_samples import Criteria, FingerSamples
-from controllers.posture import HandIndices, solve_posture
+from controllers.finger_samples import PAD_NORMAL_LOCAL, POINTS_PER_LINK, Criteria, FingerSamples
+from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Smallest distance (m) between the centres of two fingertip pads on their contacts (a pad's
@@ -60,11 +61,6 @@ MAX_PAD_SIDEWAYS = 0.8
 MIN_PAD_PALMAR = 0.2
 #: Deepest a finger link may reach into the perceived block (m): the soft pad's compliance.
 MAX_LINK_PENETRATION = 0.0015
-#: Pad normal in the distal link's frame: the tip site sits 30 deg from the palmar normal (+z)
-#: towards the tip (+y) (models/hand.xml).
-PAD_NORMAL_LOCAL = np.array([0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)])
-#: Points sampled along each finger capsule's axis for the penetration test.
-POINTS_PER_LINK = 7
 #: Hand IK iterations of the reachability check.
 IK_ITERATIONS = 250
 #: The fingers must reach this far (m) into the block past each contact point: a squeeze is a
@@ -258,7 +254,7 @@ def _sampled_start(
         squeeze,
     )
     out = qpos.copy()
-    adr = HandIndices.of(model).finger_qpos
+    adr = RobotIndices.of(model).finger_qpos
     # sliding contacts prefer the palm's height: opposed fingers then press at one height
     prefer = float(p0[2]) if heights is not None else None
     for f in range(len(robot.FINGERS)):
@@ -331,7 +327,7 @@ def check_reach(
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     data = mujoco.MjData(model)
     data.qpos[:] = start
-    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = sol.hand_q
+    data.qpos[RobotIndices.of(model).hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)
     cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))

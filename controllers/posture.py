@@ -26,8 +26,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
+from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
+from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
 #: Fingertip position tolerance (m) for a target to count as reached / held.
@@ -73,43 +75,12 @@ PALM_DISTANCE = 0.003
 CLEARANCE_SLACK = 0.001
 
 
-@dataclass(frozen=True)
-class HandIndices:
-    """Addresses in a world model of the fingertip sites and each finger's joints."""
-
-    tip_sites: NDArray[np.int64]  #: (4,) site ids, order ff, mf, rf, th
-    finger_dofs: NDArray[np.int64]  #: (4, 4) dof addresses, one row per finger
-    finger_qpos: NDArray[np.int64]  #: (4, 4) qpos addresses
-    arm_dofs: NDArray[np.int64]  #: (5,)
-
-    @classmethod
-    def of(cls, model: mujoco.MjModel) -> HandIndices:
-        """Resolve the robot's names in ``model`` (a world model with the arm and hand)."""
-
-        def joint(name: str) -> int:
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, robot.qualified(name))
-            if j < 0:
-                raise PostureError(f"the model has no joint {robot.qualified(name)!r}")
-            return j
-
-        tips = [
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.qualified(s))
-            for s in robot.FINGERTIP_SITES
-        ]
-        if min(tips) < 0:
-            raise PostureError(f"the model lacks a fingertip site of {robot.FINGERTIP_SITES}")
-        hand = np.array([joint(n) for n in robot.HAND_JOINTS]).reshape(len(robot.FINGERS), -1)
-        arm = np.array([joint(n) for n in robot.ARM_JOINTS])
-        return cls(
-            np.array(tips),
-            model.jnt_dofadr[hand],
-            model.jnt_qposadr[hand],
-            model.jnt_dofadr[arm],
-        )
+#: :class:`hand_sim.indices.RobotIndices` under the name the task cycle imports (fsm.handlers).
+HandIndices = RobotIndices
 
 
 def finger_manipulability(
-    model: mujoco.MjModel, data: mujoco.MjData, idx: HandIndices
+    model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndices
 ) -> NDArray[np.float64]:
     """``w_f = sqrt(det(J_f J_f^T))`` (m^3 rad^-3) of each finger; ``data`` must hold current
     kinematics and ``mj_comPos``."""
@@ -122,7 +93,7 @@ def finger_manipulability(
     return out
 
 
-def log_manipulability(model: mujoco.MjModel, data: mujoco.MjData, idx: HandIndices) -> float:
+def log_manipulability(model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndices) -> float:
     """The hand's measure ``M = sum_f log(w_f)``."""
     with np.errstate(divide="ignore"):
         return float(np.log(finger_manipulability(model, data, idx)).sum())
@@ -146,7 +117,7 @@ class ManipulabilityTask(mink.Task):
             raise PostureError(f"need cost >= 0 and step > 0, got cost {cost} step {step}")
         super().__init__(cost=np.array([cost]), gain=gain, lm_damping=0.0)
         self.model = model
-        self.idx = HandIndices.of(model)
+        self.idx = RobotIndices.of(model)
         self.step = float(step)
         self._data = mujoco.MjData(model)
 
@@ -166,7 +137,7 @@ class ManipulabilityTask(mink.Task):
         """Gradient (1, nv) of ``-2 M`` by central differences over the finger joints."""
         q = configuration.q.copy()
         grad = np.zeros((1, self.model.nv))
-        for qa, da in zip(self.idx.finger_qpos.ravel(), self.idx.finger_dofs.ravel(), strict=True):
+        for qa, da in zip(self.idx.hand_qpos, self.idx.hand_dof, strict=True):
             q[qa] += FD_STEP
             hi = self.objective(q)
             q[qa] -= 2 * FD_STEP
@@ -250,7 +221,7 @@ def _point_tasks(
     return tasks
 
 
-def _frozen_dofs(model: mujoco.MjModel, idx: HandIndices, joints: str) -> list[int]:
+def _frozen_dofs(model: mujoco.MjModel, idx: RobotIndices, joints: str) -> list[int]:
     movable = set(idx.finger_dofs.ravel().tolist())
     if joints == "arm+hand":
         movable |= set(idx.arm_dofs.tolist())
@@ -299,7 +270,7 @@ def solve_posture(
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
     model = world.model if model is None else model
-    idx = HandIndices.of(model)
+    idx = RobotIndices.of(model)
     cfg = mink.Configuration(model)
     start = world.data.qpos if qpos is None else np.asarray(qpos, dtype=float)
     if start.shape != (model.nq,) or not np.all(np.isfinite(start)):
@@ -389,8 +360,8 @@ def solve_posture(
         cfg.integrate_inplace(v, IK_DT)
         return True
 
-    arm_adr = model.jnt_qposadr[[model.joint(robot.qualified(j)).id for j in robot.ARM_JOINTS]]
-    hand_adr = idx.finger_qpos.ravel()
+    arm_adr = idx.arm_qpos
+    hand_adr = idx.hand_qpos
 
     def snapshot() -> NDArray[np.float64]:
         return np.concatenate([cfg.q[arm_adr], cfg.q[hand_adr]])
@@ -445,8 +416,8 @@ def solve_posture(
             ):
                 break
         err = tip_error()
-    arm_q = cfg.q[model.jnt_qposadr[[model.joint(robot.qualified(j)).id for j in robot.ARM_JOINTS]]]
-    hand_q = cfg.q[idx.finger_qpos.ravel()]
+    arm_q = cfg.q[idx.arm_qpos]
+    hand_q = cfg.q[idx.hand_qpos]
     unreachable = tuple(f for f, e in zip(robot.FINGERS, err, strict=True) if e >= tolerance)
     return PostureResult(
         reachable=not unreachable,
@@ -469,12 +440,13 @@ def world_log_manipulability(world: World) -> float:
     data.qpos[:] = world.data.qpos
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
-    return log_manipulability(model, data, HandIndices.of(model))
+    return log_manipulability(model, data, RobotIndices.of(model))
 
 
-#: Time (s) over which servo targets move to a new posture, and the settling time after it.
+#: Time (s) over which servo targets move to a new posture (then they settle for
+#: :data:`controllers.timing.SERVO_SETTLE_TIME`, imported by fsm.handlers as SETTLE_TIME).
 MOVE_TIME = 1.0
-SETTLE_TIME = 0.5
+SETTLE_TIME = SERVO_SETTLE_TIME
 #: A pad pressing on something with more than this (N) is in contact (see :func:`apply_posture`).
 CONTACT_FORCE = 0.05
 #: Steady-state servo error corrections after a move (see :func:`apply_posture`).
@@ -486,7 +458,7 @@ def apply_posture(
     result: PostureResult,
     *,
     move_time: float = MOVE_TIME,
-    settle: float = SETTLE_TIME,
+    settle: float = SERVO_SETTLE_TIME,
     corrections: int = SERVO_CORRECTIONS,
 ) -> NDArray[np.float64]:
     """Move the arm and hand servos to ``result``'s posture over ``move_time`` s along the IK's own

@@ -32,6 +32,7 @@ from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker
 from controllers.errors import ReachError
 from controllers.grasp.polygon import Polygon
 from controllers.harmonic import GridSpec, ascend, solve_harmonic
+from controllers.timing import CONTROL_PERIOD, SERVO_SETTLE_TIME, control_steps
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -67,10 +68,8 @@ APPROACH_GAP = 0.04
 #: on a 20 cm block's side faces with the palm's lower edge 5 cm above the table.
 LATERAL_DEPTH = 0.10
 
-#: Arm joint speed (rad/s) while executing a path, control period (s) and settling time (s).
+#: Arm joint speed (rad/s) while executing a path.
 MAX_JOINT_SPEED = 0.8
-CONTROL_PERIOD = 0.02
-SETTLE_TIME = 0.5
 
 
 class PerceivedBlock(Protocol):
@@ -485,7 +484,7 @@ def execute_path(
     *,
     hand_q: ArrayLike | None = None,
     max_joint_speed: float = MAX_JOINT_SPEED,
-    settle: float = SETTLE_TIME,
+    settle: float = SERVO_SETTLE_TIME,
 ) -> Execution:
     """Drive the arm's position servos along ``path`` (k, 5) at ``max_joint_speed``, first
     setting the hand to ``hand_q`` (and letting it settle) if given. Returns the robot contacts
@@ -493,7 +492,7 @@ def execute_path(
     path = np.asarray(path, dtype=float)
     if path.ndim != 2 or path.shape[1] != len(robot.ARM_JOINTS) or len(path) == 0:
         raise ReachError(f"path must have shape (k, 5), got {path.shape}")
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     t0 = world.time
     seen: set[tuple[str, str]] = set()
     if hand_q is not None:
@@ -513,9 +512,10 @@ def execute_path(
     return Execution(tuple(sorted(seen)), err, world.time - t0)
 
 
-#: Delivery: height (m) of the carried block's bottom above the table during the transit, and
-#: where the planned set-down ends (the last part is sensed: controllers.transport).
-LIFT_HEIGHT = 0.05
+#: Delivery: height (m) of the carried block's bottom above the table during the transit (not
+#: the grasp's lift, :data:`controllers.transport.LIFT_HEIGHT`), and where the planned set-down
+#: ends (the last part is sensed: controllers.transport).
+CARRY_HEIGHT = 0.05
 SET_DOWN_HOVER = 0.02
 #: Clearance (m) the hand keeps from everything but the table all the way down to the hover.
 SET_DOWN_CLEARANCE = 0.003
@@ -547,7 +547,7 @@ def plan_delivery(
     *,
     block_height: float | None = None,
     resolution: int = DEFAULT_RESOLUTION,
-    lift: float = LIFT_HEIGHT,
+    lift: float = CARRY_HEIGHT,
     hover: float = SET_DOWN_HOVER,
     clearance: float = DEFAULT_CLEARANCE,
 ) -> DeliveryPlan:

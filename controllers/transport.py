@@ -18,7 +18,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
-from controllers.grip import CONTROL_PERIOD, Grip
+from controllers.grip import Grip
+from controllers.timing import CONTROL_PERIOD, control_steps
+from hand_sim import robot
 from hand_sim.world import World
 
 #: Lift: height (m) and duration (s); the block must rise with the palm within SLIP_TOLERANCE.
@@ -46,19 +48,17 @@ MAX_UNLOAD = 0.005
 RETREAT_BACK = 0.06
 RETREAT_UP = 0.08
 RETREAT_TIME = 1.0
-#: Settling time (s) after a motion.
-SETTLE_TIME = 0.3
-
-
-def _steps(world: World) -> int:
-    return max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+#: Pause (s) after each motion of Deliver (lift, carry, set-down, unload, retreat), the grip
+#: regulating if the hand holds the block: shorter than the servos' settling time after a reach
+#: (:data:`controllers.timing.SERVO_SETTLE_TIME`).
+DELIVER_SETTLE_TIME = 0.3
 
 
 def _hold(world: World, grip: Grip | None, seconds: float) -> None:
     for _ in range(max(0, round(seconds / CONTROL_PERIOD))):
         if grip is not None:
             grip.regulate(world, CONTROL_PERIOD)
-        world.step(_steps(world))
+        world.step(control_steps(world))
 
 
 def move_palm(
@@ -93,7 +93,7 @@ def move_palm(
         world.set_arm_targets(ik.q)
         if grip is not None:
             grip.regulate(world, CONTROL_PERIOD)
-        world.step(_steps(world))
+        world.step(control_steps(world))
         if stop is not None and stop(world):
             return False
     return True
@@ -128,7 +128,7 @@ def lift(
     b0 = world.block_pose(block)[0][2]
     p0 = checker.palm_pose(world.arm_qpos())[0][2]
     move_palm(world, checker, [0.0, 0.0, height], duration, grip=grip)
-    _hold(world, grip, SETTLE_TIME)
+    _hold(world, grip, DELIVER_SETTLE_TIME)
     return LiftResult(
         palm_rise=checker.palm_pose(world.arm_qpos())[0][2] - p0,
         block_rise=world.block_pose(block)[0][2] - b0,
@@ -149,10 +149,10 @@ def carry(
     for q in timed_path(path, max_joint_speed, CARRY_ACCELERATION, CONTROL_PERIOD):
         world.set_arm_targets(q)
         grip.regulate(world, CONTROL_PERIOD)
-        world.step(_steps(world))
+        world.step(control_steps(world))
         if on_period is not None:
             on_period(world)
-    _hold(world, grip, SETTLE_TIME)
+    _hold(world, grip, DELIVER_SETTLE_TIME)
 
 
 def timed_path(
@@ -190,10 +190,6 @@ def timed_path(
     return np.column_stack([np.interp(s, arc, p[:, j]) for j in range(p.shape[1])])
 
 
-#: Standard gravity (m/s^2), to express a held mass as a weight.
-STANDARD_GRAVITY = 9.81
-
-
 def held_load(world: World, empty_hand_force: ArrayLike) -> float:
     """The weight (N) the hand carries beyond its own, from the wrist's sensors: the vertical
     wrist force divided by the wrist accelerometer's vertical reading is the mass the wrist
@@ -201,10 +197,10 @@ def held_load(world: World, empty_hand_force: ArrayLike) -> float:
     ``empty_hand_force`` (3,) measured with the hand empty and at rest."""
     force, _ = world.wrist_wrench()
     up = float(world.wrist_acceleration()[2])
-    hand_mass = float(np.asarray(empty_hand_force, dtype=float)[2]) / STANDARD_GRAVITY
+    hand_mass = float(np.asarray(empty_hand_force, dtype=float)[2]) / robot.STANDARD_GRAVITY
     if up <= 1.0:  # falling freely: the load cannot be told
         return 0.0
-    return (float(force[2]) / up - hand_mass) * STANDARD_GRAVITY
+    return (float(force[2]) / up - hand_mass) * robot.STANDARD_GRAVITY
 
 
 @dataclass(frozen=True)
@@ -228,7 +224,7 @@ def lower_until_supported(
 ) -> SetDownResult:
     """Lower the palm until the wrist sensor shows the table carrying the block (the load held
     falls below ``1 - SUPPORTED_SHARE`` of what it was), not to a height assumed in advance."""
-    _hold(world, grip, SETTLE_TIME)
+    _hold(world, grip, DELIVER_SETTLE_TIME)
     before = held_load(world, empty_hand_force)
     if before <= 0.0:
         raise ReachError(f"the hand holds no load to set down (wrist sensor: {before:.2f} N)")
@@ -238,14 +234,14 @@ def lower_until_supported(
         return held_load(w, empty_hand_force) < (1.0 - SUPPORTED_SHARE) * before
 
     move_palm(world, checker, [0.0, 0.0, -max_lower], max_lower / speed, grip=grip, stop=supported)
-    _hold(world, grip, SETTLE_TIME)
+    _hold(world, grip, DELIVER_SETTLE_TIME)
     # the arm's servos lag behind the lowering: take back any push into the table
     for _ in range(round(MAX_UNLOAD / UNLOAD_STEP)):
         if held_load(world, empty_hand_force) > -UNLOAD_TOLERANCE:
             break
         move_palm(world, checker, [0.0, 0.0, UNLOAD_STEP], CONTROL_PERIOD, grip=grip)
         _hold(world, grip, UNLOAD_SETTLE)
-    _hold(world, grip, SETTLE_TIME)
+    _hold(world, grip, DELIVER_SETTLE_TIME)
     after = held_load(world, empty_hand_force)
     return SetDownResult(
         supported=after < (1.0 - SUPPORTED_SHARE) * before,
@@ -262,5 +258,5 @@ def retreat(world: World, checker: CollisionChecker) -> NDArray[np.float64]:
     approach = R[:, 2]
     move_palm(world, checker, -RETREAT_BACK * approach, RETREAT_TIME)
     move_palm(world, checker, [0.0, 0.0, RETREAT_UP], RETREAT_TIME)
-    _hold(world, None, SETTLE_TIME)
+    _hold(world, None, DELIVER_SETTLE_TIME)
     return checker.palm_pose(world.arm_qpos())[0]

@@ -17,6 +17,7 @@ from controllers.grasp.session import GraspSynthesis
 from controllers.grip import Grip
 from controllers.hand_reach import FingerContacts, HandReach, PerceivedPrism
 from controllers.reach import CoarseReachPlan, ReachTarget
+from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from hand_sim.world import World
 
 #: Controllers and approaches the command line accepts.
@@ -81,7 +82,8 @@ class Episode:
     world: World
     rng: np.random.Generator
     composer: Composer
-    recorder: Any | None = None  #: fsm.recording.EpisodeRecorder
+    #: what the states tell the recording (fsm.recording.EpisodeRecorder; by default nothing)
+    recorder: TaskRecorder = field(default_factory=NullRecorder)
     cycle: int = 0
     cycles: list[CycleRecord] = field(default_factory=list)
     delivered: list[str] = field(default_factory=list)  #: scene names of delivered blocks

@@ -24,6 +24,7 @@ from controllers.grasp.registry import make_composer
 from fsm.context import Episode, EpisodeOptions, out_paths
 from fsm.handlers import HANDLERS, TaskFailedError
 from fsm.layout import episode_scene
+from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from fsm.states import TRANSITIONS, Failure, State, allowed
 from hand_sim.errors import SimulationError
 from hand_sim.world import World
@@ -96,7 +97,7 @@ class Clock:
     """Watches simulated time per state; installed as the world's step hook together with the
     recorder's tick."""
 
-    def __init__(self, world: World, recorder: Any | None) -> None:
+    def __init__(self, world: World, recorder: TaskRecorder) -> None:
         self.world = world
         self.recorder = recorder
         self.state_start = world.time
@@ -108,8 +109,7 @@ class Clock:
         self.budget = spec.budget if spec is not None else 0.0
 
     def __call__(self, world: World) -> None:
-        if self.recorder is not None:
-            self.recorder.tick(world)
+        self.recorder.tick(world)
         if self.budget and world.time - self.state_start > self.budget:
             raise BudgetExceededError(
                 f"{world.time - self.state_start:.1f} s of simulated time "
@@ -138,11 +138,12 @@ def run_episode(
     options: EpisodeOptions,
     *,
     announce: Callable[[str], None] | None = None,
-    recorder_factory: Callable[[Path, World], Any] | None = None,
+    recorder_factory: Callable[[Path, World], TaskRecorder] | None = None,
 ) -> EpisodeResult:
     """Run one episode as ``options`` ask; write ``episode.rrd`` (unless ``options.record`` is
     False) and ``summary.json`` into ``options.out``, also when it fails. ``announce`` receives a
-    line per state entered."""
+    line per state entered; ``recorder_factory(rrd_path, world)`` makes the recorder of a recorded
+    episode (default :class:`fsm.recording.EpisodeRecorder`)."""
     wall0 = time.perf_counter()
     rrd_path, summary_path = out_paths(options.out)
     scene = episode_scene(options.scene, options.seed, options.blocks)
@@ -150,7 +151,7 @@ def run_episode(
     models = {"model_dir": options.models} if options.models is not None else {}
     composer = make_composer(options.controller, **models)
     rng = np.random.default_rng(options.seed)
-    recorder = None
+    recorder: TaskRecorder = NullRecorder()
     if options.record:
         if recorder_factory is None:
             from fsm.recording import EpisodeRecorder
@@ -164,7 +165,7 @@ def run_episode(
         failure_detail="",
         options=_jsonable(asdict(options)),
         scene=scene.name,
-        rrd=str(rrd_path) if recorder is not None else None,
+        rrd=str(rrd_path) if options.record else None,
     )
     clock = Clock(world, recorder)
     world.on_step = clock
@@ -194,9 +195,8 @@ def run_episode(
             visit.sim_seconds = world.time - visit.sim_start
             visit.wall_seconds = time.perf_counter() - t0
             visit.reason, visit.next = reason, following.value
-            if recorder is not None:
-                level = "ERROR" if following is State.FAILED else "INFO"
-                recorder.log_transition(state.value, following.value, reason, level=level)
+            level = "ERROR" if following is State.FAILED else "INFO"
+            recorder.log_transition(state.value, following.value, reason, level=level)
             state = following
     except KeyboardInterrupt:
         result.failure, result.failure_detail = Failure.INTERRUPTED.value, "Ctrl-C"
@@ -210,11 +210,10 @@ def run_episode(
         result.cycles = [_jsonable(asdict(c)) for c in ep.cycles if c.block is not None]
         result.sim_time = world.time
         result.wall_time = time.perf_counter() - wall0
-        if recorder is not None:
-            try:
-                verdict = "delivered" if result.success else f"failed: {result.failure}"
-                recorder.log_verdict(result.success, verdict)
-            finally:
-                recorder.close()
+        try:
+            verdict = "delivered" if result.success else f"failed: {result.failure}"
+            recorder.log_verdict(result.success, verdict)
+        finally:
+            recorder.close()
         write_summary(summary_path, result)
     return result

@@ -10,7 +10,6 @@ NaN or a MuJoCo instability warning.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -31,6 +30,7 @@ from hand_sim.assembly import (
 )
 from hand_sim.blocks import JOINT_SUFFIX
 from hand_sim.errors import HandSimError, SimulationError
+from hand_sim.indices import RobotIndices, element_id
 from hand_sim.scene_spec import Scene
 
 __all__ = ["CAMERA_NAME", "MODELS_DIR", "TIMESTEP", "World"]
@@ -43,33 +43,6 @@ FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
     mujoco.mjtWarning.mjWARN_CONTACTFULL,
     mujoco.mjtWarning.mjWARN_CNSTRFULL,
 )
-
-
-@dataclass(frozen=True)
-class _Indices:
-    """Addresses of the robot's joints, actuators, sites and sensors in the compiled model."""
-
-    arm_qpos: NDArray[np.int64]
-    arm_dof: NDArray[np.int64]
-    arm_ctrl: NDArray[np.int64]
-    hand_qpos: NDArray[np.int64]
-    hand_dof: NDArray[np.int64]
-    hand_ctrl: NDArray[np.int64]
-    tip_sites: NDArray[np.int64]
-    touch_adr: NDArray[np.int64]
-    wrist_force_adr: int
-    wrist_torque_adr: int
-    wrist_accel_adr: int
-    mount_site: int
-    block_bodies: dict[str, int]
-    block_qpos: dict[str, int]
-
-
-def _element_id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
-    i = mujoco.mj_name2id(model, kind, name)
-    if i < 0:
-        raise SimulationError(f"the world model has no {kind.name[6:].lower()} {name!r}")
-    return i
 
 
 class World:
@@ -89,7 +62,8 @@ class World:
         self.model: mujoco.MjModel = physics.model.ptr
         self.data: mujoco.MjData = physics.data.ptr
         self.with_robot = with_robot
-        self._idx = self._resolve()
+        self._idx = RobotIndices.of(self.model) if with_robot else RobotIndices.empty()
+        self._block_bodies, self._block_qpos = self._resolve_blocks()
         self._warnings = self._warning_counts()
         #: Called with the world after every :meth:`step` call (a controller steps once per
         #: control period): an episode's recorder and clock hook in here.
@@ -117,48 +91,16 @@ class World:
         world._go_home(home)
         return world
 
-    def _resolve(self) -> _Indices:
+    def _resolve_blocks(self) -> tuple[dict[str, int], dict[str, int]]:
+        """Body ids and free-joint qpos addresses of the scene's blocks, by block name."""
         m = self.model
         obj = mujoco.mjtObj
-
-        def ids(kind: mujoco.mjtObj, names: tuple[str, ...]) -> NDArray[np.int64]:
-            if not self.with_robot:
-                return np.zeros(0, dtype=np.int64)
-            return np.array(
-                [_element_id(m, kind, robot.qualified(n)) for n in names], dtype=np.int64
-            )
-
-        arm_j, hand_j = (
-            ids(obj.mjOBJ_JOINT, robot.ARM_JOINTS),
-            ids(obj.mjOBJ_JOINT, robot.HAND_JOINTS),
-        )
-        arm_a = ids(obj.mjOBJ_ACTUATOR, robot.ARM_ACTUATORS)
-        hand_a = ids(obj.mjOBJ_ACTUATOR, robot.HAND_ACTUATORS)
-        tips = ids(obj.mjOBJ_SITE, robot.FINGERTIP_SITES)
-        touch = m.sensor_adr[ids(obj.mjOBJ_SENSOR, robot.TOUCH_SENSORS)]
-        wrist = m.sensor_adr[ids(obj.mjOBJ_SENSOR, robot.WRIST_SENSORS)]
-        mount = ids(obj.mjOBJ_SITE, (robot.MOUNT_SITE,))
-        bodies = {b.name: _element_id(m, obj.mjOBJ_BODY, b.name) for b in self.scene.blocks}
+        bodies = {b.name: element_id(m, obj.mjOBJ_BODY, b.name) for b in self.scene.blocks}
         qpos = {
-            b.name: int(m.jnt_qposadr[_element_id(m, obj.mjOBJ_JOINT, b.name + JOINT_SUFFIX)])
+            b.name: int(m.jnt_qposadr[element_id(m, obj.mjOBJ_JOINT, b.name + JOINT_SUFFIX)])
             for b in self.scene.blocks
         }
-        return _Indices(
-            arm_qpos=m.jnt_qposadr[arm_j],
-            arm_dof=m.jnt_dofadr[arm_j],
-            arm_ctrl=arm_a,
-            hand_qpos=m.jnt_qposadr[hand_j],
-            hand_dof=m.jnt_dofadr[hand_j],
-            hand_ctrl=hand_a,
-            tip_sites=tips,
-            touch_adr=np.asarray(touch, dtype=np.int64),
-            wrist_force_adr=int(wrist[0]) if len(wrist) else -1,
-            wrist_torque_adr=int(wrist[1]) if len(wrist) else -1,
-            wrist_accel_adr=int(wrist[2]) if len(wrist) else -1,
-            mount_site=int(mount[0]) if len(mount) else -1,
-            block_bodies=bodies,
-            block_qpos=qpos,
-        )
+        return bodies, qpos
 
     def _check_table(self) -> None:
         """The table model's top must be where the scene says (blocks are placed on it)."""
@@ -241,9 +183,9 @@ class World:
     def block_pose(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (3,) of block ``name``'s centroid (mid-height) and its quaternion (4,)
         (w, x, y, z)."""
-        if name not in self._idx.block_bodies:
+        if name not in self._block_bodies:
             self.scene.block(name)  # raises SceneError listing the blocks
-        b = self._idx.block_bodies[name]
+        b = self._block_bodies[name]
         return self.data.xpos[b].copy(), self.data.xquat[b].copy()
 
     def set_block_pose(
@@ -251,7 +193,7 @@ class World:
     ) -> None:
         """Teleport block ``name`` (centroid at ``position`` (3,), orientation ``quat``
         (w, x, y, z)), at rest; recomputes the derived quantities (positions, contacts, sensors)."""
-        if name not in self._idx.block_qpos:
+        if name not in self._block_qpos:
             self.scene.block(name)
         p, q = np.asarray(position, dtype=float), np.asarray(quat, dtype=float)
         if (
@@ -266,18 +208,18 @@ class World:
         norm = float(np.linalg.norm(q))
         if norm == 0.0:
             raise HandSimError("block quaternion must not be zero")
-        adr = self._idx.block_qpos[name]
+        adr = self._block_qpos[name]
         self.data.qpos[adr : adr + 3] = p
         self.data.qpos[adr + 3 : adr + 7] = q / norm
-        dof = self.model.jnt_dofadr[self.model.body_jntadr[self._idx.block_bodies[name]]]
+        dof = self.model.jnt_dofadr[self.model.body_jntadr[self._block_bodies[name]]]
         self.data.qvel[dof : dof + 6] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
     def block_body_id(self, name: str) -> int:
         """MuJoCo body id of block ``name``."""
-        if name not in self._idx.block_bodies:
+        if name not in self._block_bodies:
             self.scene.block(name)
-        return self._idx.block_bodies[name]
+        return self._block_bodies[name]
 
     # --- robot -----------------------------------------------------------------------------
     def _require_robot(self) -> None:

@@ -25,6 +25,7 @@ from hand_sim.contacts import robot_contacts
 from hand_sim.errors import HandSimError, SceneError, SimulationError
 from hand_sim.recorder import read_recording
 from hand_sim.scene import load_scene
+from hand_sim.telemetry import series_names
 from hand_sim.world import World
 
 CONTROL_STEPS = 10  # one 20 ms control period of 2 ms physics steps
@@ -120,7 +121,7 @@ def test_episode_entities_timelines_and_layout(tmp_path: Path, world: World) -> 
     assert got["/world/cameras/overhead/rgb"]["EncodedImage:blob"] == round(0.4 * 5) + 1
 
     # every scalar series, one row per frame
-    for name in EpisodeRecorder._series_names():
+    for name in series_names():
         assert got[f"/scalars/{name}"]["Scalars:scalars"] == n_frames, name
     touch = rows(path, "/scalars/touch/th", "Scalars:scalars")
     assert touch[-1][0]["sim_time"] == pytest.approx(t_end)

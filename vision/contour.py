@@ -31,7 +31,7 @@ from vision.errors import ExtractionError
 from vision.hough import (
     COARSE_FIT_DISTANCE,
     LOOSE_FIT_DISTANCE,
-    MIN_EDGE_LENGTH,
+    MIN_EDGE_PX,
     MIN_SUPPORT,
     Line,
     clip_halfplanes,
@@ -162,7 +162,7 @@ def fit_polygon(
     untrusted: NDArray[np.bool_],
     noise_sigma: float | None = None,
     bbox: tuple[int, int, int, int] | None = None,
-    min_edge_px: float = MIN_EDGE_LENGTH,
+    min_edge_px: float = MIN_EDGE_PX,
     mask_slack_px: float = 0.0,
 ) -> PixelPolygon:
     """The convex polygon of one top face, in image pixels.

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from controllers.grasp import Polygon, PolygonError
 from vision.contour import PixelPolygon, fit_polygon
 from vision.errors import ExtractionError
-from vision.hough import MIN_EDGE_LENGTH as HOUGH_MIN_EDGE_PX
+from vision.hough import MIN_EDGE_PX
 from vision.model import ObjectModel
 from vision.observation import Observation
 from vision.segment import BlockRegion, Segmentation
@@ -66,7 +66,7 @@ def model_from_region(
             seg.occluder,
             noise_sigma,
             region.bbox,
-            max(HOUGH_MIN_EDGE_PX, min_edge_px),
+            max(MIN_EDGE_PX, min_edge_px),
             _mask_slack(obs, seg, region),
         )
     except ExtractionError as e:

@@ -31,9 +31,9 @@ MIN_VOTES = 4
 SUPPORT_DISTANCE = 0.8
 LOOSE_FIT_DISTANCE = 0.6
 COARSE_FIT_DISTANCE = 0.7
-#: A line needs this many consecutive supporting points spanning at least MIN_EDGE_LENGTH px.
+#: A line needs this many consecutive supporting points spanning at least MIN_EDGE_PX pixels.
 MIN_SUPPORT = 4
-MIN_EDGE_LENGTH = 2.5
+MIN_EDGE_PX = 2.5
 #: Consecutive outline points may skip this many points (noise) and still form one run.
 MAX_RUN_GAP = 2
 #: Lines whose normals differ by less than this (rad) and that lie within MERGE_OFFSET (px) of
@@ -114,7 +114,7 @@ def line_from_run(
     if len(run) < MIN_SUPPORT:
         return None
     p = pts[run]
-    if np.linalg.norm(p.max(axis=0) - p.min(axis=0)) < MIN_EDGE_LENGTH:
+    if np.linalg.norm(p.max(axis=0) - p.min(axis=0)) < MIN_EDGE_PX:
         return None
     n, c, keep = robust_fit(p, centre)
     if keep.sum() < MIN_SUPPORT:
