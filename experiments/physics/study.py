@@ -37,19 +37,18 @@ from controllers.errors import ReachError
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis
-from controllers.grip import CONTROL_PERIOD, close, plan_grip, squeeze
-from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism
-from controllers.posture import HandIndices
+from controllers.grip import close, plan_grip, squeeze
+from controllers.hand_reach import CONTACT_SEPARATION, PerceivedPrism
 from controllers.reach import ReachTarget
-from controllers.transport import lift
+from controllers.timing import CONTROL_PERIOD, control_steps
+from controllers.transport import LIFT_HEIGHT, lift
 from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
 from hand_sim import robot
 from hand_sim.errors import SimulationError
+from hand_sim.indices import RobotIndices
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
-#: The task cycle's extra spacing of the controller's contacts (fsm: SEPARATION_MARGIN, m).
-SEPARATION_MARGIN = 0.002
 #: Duration (s) of each external force, its directions (world axes) and the lift (m).
 FORCE_TIME = 2.0
 DIRECTIONS: tuple[tuple[str, tuple[float, float, float]], ...] = (
@@ -60,7 +59,6 @@ DIRECTIONS: tuple[tuple[str, tuple[float, float, float]], ...] = (
     ("+z", (0.0, 0.0, 1.0)),
     ("-z", (0.0, 0.0, -1.0)),
 )
-LIFT_HEIGHT = 0.10
 #: Settling (s) after the arm and hand are set in place, and after the table is taken away (the
 #: block's weight alone: judged like a stage, called "hang").
 PLACE_SETTLE = 0.2
@@ -188,8 +186,8 @@ class StudyWorld:
 def _set_robot(world: World, qpos: np.ndarray, hand_q: np.ndarray) -> None:
     """Arm and hand at ``qpos``'s arm and ``hand_q``, at rest, the servos holding them."""
     m = world.model
-    arm_adr = [m.jnt_qposadr[m.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
-    hand_adr = HandIndices.of(m).finger_qpos.ravel()
+    arm_adr = robot.arm_qpos_addresses(m)
+    hand_adr = RobotIndices.of(m).finger_qpos.ravel()
     world.data.qpos[arm_adr] = qpos[arm_adr]
     world.data.qpos[hand_adr] = hand_q
     world.data.qvel[:] = 0.0
@@ -202,7 +200,7 @@ def _stage(
     world: World, name: str, seconds: float, ref: tuple[np.ndarray, np.ndarray], out: GraspOutcome
 ) -> bool:
     """Step for ``seconds`` tracking the block's pose against ``ref``; False once it is lost."""
-    steps = max(1, round(CONTROL_PERIOD / world.model.opt.timestep))
+    steps = control_steps(world)
     worst_shift = worst_turn = 0.0
     for _ in range(max(1, round(seconds / CONTROL_PERIOD))):
         world.step(steps)
@@ -284,7 +282,7 @@ def test_grasp(
         composer,
         out.theta_initial,
         rng,
-        min_separation=MIN_PAD_SPACING + SEPARATION_MARGIN,
+        min_separation=CONTACT_SEPARATION,
         separation_offset=robot.PAD_RADIUS,
     )
     while not syn.done:
@@ -332,7 +330,7 @@ def test_grasp(
 
 
 def _hand_adr(world: World) -> np.ndarray:
-    return HandIndices.of(world.model).finger_qpos.ravel()
+    return RobotIndices.of(world.model).finger_qpos.ravel()
 
 
 @dataclass(frozen=True)
