@@ -13,7 +13,8 @@ manipulability while maintaining the current fingertip positions".
 :class:`ManipulabilityTask` is a gradient-type mink task: its error is a constant desired
 decrease of ``-2 M`` per step and its Jacobian the gradient of ``-2 M`` (finite differences over
 the finger joints), so the QP trades it against the fingertip tasks; it needs ``solve_ik(...,
-damping=...)`` (STACK.md).
+damping=...)``: without damping a gradient-type task makes the step explode
+(docs/reach.md, "Posture control").
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ QP_SOLVER = "daqp"
 IK_DAMPING = 1e-3
 #: Fingertip-only IK steps after each manipulability step, to pull the tips back on target.
 TIP_RECOVERY_STEPS = 3
-#: Fingertip FrameTask cost and LM damping (STACK.md pattern).
+#: Fingertip FrameTask cost and Levenberg-Marquardt damping (mink FrameTask, position only).
 TIP_COST = 1.0
 #: Cost of the pad-centre targets that turn each pad towards its surface (see solve_posture).
 PAD_CENTRE_COST = 0.3

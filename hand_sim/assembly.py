@@ -34,8 +34,9 @@ TABLE_VISUAL_NAME = "table_top_visual"
 TABLE_VISUAL_THICKNESS = 0.01
 TABLE_VISUAL_RGBA = (0.62, 0.55, 0.45, 1.0)
 
-#: Physics options (STACK.md): 2 ms step, implicit-fast integration for the stiff finger servos,
-#: elliptic friction cones with a high impratio so that grasps do not slip.
+#: Physics options (docs/world.md): 2 ms step, implicit-fast integration for the stiff finger
+#: servos (Euler lets low-inertia finger joints go NaN), elliptic friction cones with a high
+#: impratio so that grasps do not slip.
 TIMESTEP = 0.002
 INTEGRATOR = "implicitfast"
 CONE = "elliptic"

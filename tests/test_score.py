@@ -40,7 +40,8 @@ def test_same_face_contacts_are_infeasible_not_an_error():
 
 
 def test_three_against_one_is_unbalanced():
-    """DESIGN.md: a thumb opposing three fingers on parallel faces needs 3 against 1+1+1."""
+    """A thumb opposing three fingers on parallel faces needs a thumb force of 3 against 1+1+1, so
+    S_G = 0.5 > 0.4: an unbalanced grasp fails (docs/models.md)."""
     pts = [(1, -0.5), (1, 0.0), (1, 0.5), (-1, 0.0)]
     nrm = [SQUARE_NORMALS["+x"]] * 3 + [SQUARE_NORMALS["-x"]]
     assert grasp_score(pts, nrm).s_g == pytest.approx(0.5, abs=1e-6)
