@@ -17,7 +17,9 @@ from collections.abc import Sequence
 import mink
 import numpy as np
 
+from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
+from controllers.delivery import plan_delivery
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.harmonic import ascend, solve_harmonic
@@ -28,16 +30,7 @@ from controllers.posture import (
     ManipulabilityTask,
     solve_posture,
 )
-from controllers.reach import (
-    PRESHAPE,
-    ReachTarget,
-    execute_path,
-    goal_poses,
-    plan_arm_path,
-    plan_coarse_reach,
-    plan_delivery,
-    solve_goal,
-)
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
 from hand_sim import clitools as cli
 from hand_sim import robot
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS

@@ -18,11 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from controllers.arm_path import execute_path
 from controllers.cspace import CollisionChecker
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import move_hand
-from controllers.reach import ReachTarget, execute_path, plan_coarse_reach
+from controllers.reach import ReachTarget, plan_coarse_reach
 from controllers.transport import move_palm
 from fsm.recording import EpisodeRecorder
 from hand_sim.contacts import robot_contacts

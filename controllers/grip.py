@@ -24,12 +24,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import lsq_linear
 
 from controllers.errors import ReachError
-from controllers.hand_reach import (
-    SQUEEZE_REACH,
-    PerceivedPrism,
-    finger_clearance,
-    grip_targets,
-)
+from controllers.finger_geometry import PerceivedPrism, finger_clearance
+from controllers.hand_reach import SQUEEZE_REACH, grip_targets
 from controllers.posture import solve_posture
 from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot

@@ -12,10 +12,11 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.composition import Composer
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import Grip
-from controllers.hand_reach import FingerContacts, HandReach, PerceivedPrism
+from controllers.hand_reach import FingerContacts, HandReach
 from controllers.reach import CoarseReachPlan, ReachTarget
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from hand_sim.world import World

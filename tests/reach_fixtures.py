@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from controllers.reach import ReachTarget, execute_path, plan_coarse_reach
+from controllers.arm_path import execute_path
+from controllers.reach import ReachTarget, plan_coarse_reach
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 

@@ -15,13 +15,8 @@ import numpy as np
 import pytest
 
 from controllers.cspace import PALM_SITE
-from controllers.hand_reach import (
-    CONTACT_TOLERANCE,
-    MAX_PAD_ANGLE,
-    fingertips_at,
-    grip_targets,
-    pad_normals,
-)
+from controllers.finger_geometry import fingertips_at, pad_normals
+from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
 from controllers.posture import HandIndices
 from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
 from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc

@@ -1,4 +1,5 @@
-"""Tests of coarse reach (controllers.reach) on the simulated arm in clutter3."""
+"""Tests of coarse reach, arm paths and delivery (controllers.reach, controllers.arm_path,
+controllers.delivery) on the simulated arm in clutter3."""
 
 from __future__ import annotations
 
@@ -9,18 +10,12 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
+from controllers.delivery import SET_DOWN_HOVER, plan_delivery
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
-from controllers.reach import (
-    PRESHAPE,
-    SET_DOWN_HOVER,
-    ReachTarget,
-    execute_path,
-    plan_arm_path,
-    plan_coarse_reach,
-    plan_delivery,
-)
+from controllers.reach import PRESHAPE, ReachTarget, plan_coarse_reach
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World

@@ -14,9 +14,10 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
+from controllers.arm_path import execute_path
 from controllers.cspace import CollisionChecker
 from controllers.grip import move_hand
-from controllers.reach import PRESHAPE, ReachTarget, execute_path, goal_poses, solve_goal
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from controllers.transport import move_palm
 from fsm.recording import FORCE_ARROW_SCALE, EpisodeRecorder
 from hand_sim import robot

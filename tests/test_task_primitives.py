@@ -13,7 +13,8 @@ import pytest
 
 from controllers.cspace import CollisionChecker
 from controllers.fine_reach import fine_reach, obstacle_grid
-from controllers.hand_reach import MIN_PAD_SPACING, PerceivedPrism, check_reach
+from controllers.finger_geometry import PerceivedPrism
+from controllers.hand_reach import MIN_PAD_SPACING, check_reach
 from controllers.harmonic import GridSpec
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
 from controllers.posture import apply_posture, solve_posture

@@ -34,11 +34,12 @@ import numpy as np
 
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
+from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.session import GraspSynthesis
 from controllers.grip import close, plan_grip, squeeze
-from controllers.hand_reach import CONTACT_SEPARATION, PerceivedPrism
+from controllers.hand_reach import CONTACT_SEPARATION
 from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from controllers.transport import LIFT_HEIGHT, lift

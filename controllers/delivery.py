@@ -1,0 +1,151 @@
+"""Delivery (section 5.2, "Deliver"): carry a grasped block to a place point on the table.
+
+"The path is computed by the same harmonic path planning algorithm used in the coarse reach
+module" (:func:`controllers.arm_path.plan_arm_path`), with the block moving rigidly with the
+palm: straight up to :data:`CARRY_HEIGHT`, a harmonic transit, and straight down until the
+block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-down is sensed,
+:mod:`controllers.transport`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.arm_path import (
+    DEFAULT_RESOLUTION,
+    ArmPath,
+    dedupe_path,
+    first_collision,
+    plan_arm_path,
+)
+from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker
+from controllers.errors import ReachError
+from hand_sim import robot
+from hand_sim.world import World
+
+#: Delivery: height (m) of the carried block's bottom above the table during the transit (not
+#: the grasp's lift, :data:`controllers.transport.LIFT_HEIGHT`), and where the planned set-down
+#: ends (the last part is sensed: controllers.transport).
+CARRY_HEIGHT = 0.05
+SET_DOWN_HOVER = 0.02
+#: Clearance (m) the hand keeps from everything but the table all the way down to the hover.
+SET_DOWN_CLEARANCE = 0.003
+
+
+@dataclass(frozen=True, eq=False)
+class DeliveryPlan:
+    """A path carrying a grasped block to a place point: straight up to the carry height (if the
+    block is not there yet), harmonic transit (the coarse-reach planner with the block as part
+    of the hand), straight down until the block's bottom hovers ``SET_DOWN_HOVER`` above the
+    table."""
+
+    found: bool
+    path: NDArray[np.float64]  #: (k, 5) arm postures, start first
+    transit: ArmPath | None  #: the harmonic part
+    block_goal: NDArray[np.float64] | None  #: (3,) block centre at the end
+    reason: str
+
+
+def _rotate_z(angle: float) -> NDArray[np.float64]:
+    """Rotation by ``angle`` (rad) about the world z axis."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def plan_delivery(
+    world: World,
+    block: str,
+    place_xy: ArrayLike,
+    *,
+    block_height: float | None = None,
+    resolution: int = DEFAULT_RESOLUTION,
+    lift: float = CARRY_HEIGHT,
+    hover: float = SET_DOWN_HOVER,
+    clearance: float = DEFAULT_CLEARANCE,
+) -> DeliveryPlan:
+    """Plan to carry ``block`` (held by the hand now, on the table or already lifted) to
+    ``place_xy`` on the table (section 5.2, "Deliver": "the path is computed by the same harmonic
+    path planning algorithm used in the coarse reach module").
+
+    Heights come from the table and the block's height (``block_height``, e.g. the perceived
+    one; default the scene's), not from where the block is now: the transit carries the block's
+    bottom at least ``lift`` above the table, and the path ends with it ``hover`` above the table
+    at the place point (the rest of the set-down is sensed). Postures are checked with the block
+    moving rigidly with the palm; where it is within ``2 * clearance`` of the table (lift-off and
+    set-down) the block-table pair is exempt."""
+    place = np.asarray(place_xy, dtype=float)
+    if place.shape != (2,) or not np.all(np.isfinite(place)):
+        raise ReachError(f"place point must be a finite (x, y), got {place_xy!r}")
+    if not clearance < lift < 0.5:
+        raise ReachError(f"lift must lie in ({clearance}, 0.5) m, got {lift}")
+    if not 0.0 <= hover < lift:
+        raise ReachError(f"hover must lie in [0, lift = {lift}) m, got {hover}")
+    height = world.scene.block(block).height if block_height is None else float(block_height)
+    if not (np.isfinite(height) and height > 0):
+        raise ReachError(f"block height must be a positive number of metres, got {block_height}")
+    checker = CollisionChecker(world, clearance=clearance, hand_q=world.hand_qpos(), carried=block)
+    # the set-down's last 2 * clearance is exempt above (the block nears the table); the hand's
+    # links must still keep SET_DOWN_CLEARANCE from everything else all the way down (a finger's
+    # middle link landed on a block delivered before, clutter5's third cycle)
+    descent = CollisionChecker(
+        world, clearance=SET_DOWN_CLEARANCE, hand_q=world.hand_qpos(), carried=block
+    )
+    q0 = world.arm_qpos()
+    empty = np.stack([q0])
+
+    def fail(reason: str, transit: ArmPath | None = None) -> DeliveryPlan:
+        return DeliveryPlan(False, empty, transit, None, reason)
+
+    p0, R0 = checker.palm_pose(q0)
+    b0, _ = checker.carried_pose(q0)
+    table = world.scene.table.height
+    carry_z = max(b0[2], table + 0.5 * height + lift)
+    down_z = table + 0.5 * height + hover
+    up = np.array([0.0, 0.0, carry_z - b0[2]])
+    start = q0
+    if up[2] > 1e-4:
+        lift_ik = checker.solve_ik(p0 + up, R0, q0)
+        # the block may touch the table in the first 2 * clearance of the lift
+        clear = min(up[2], 2.0 * clearance)
+        free_ik = checker.solve_ik(p0 + np.array([0.0, 0.0, clear]), R0, q0)
+        if not (lift_ik.found and free_ik.found):
+            return fail("the block cannot be lifted straight up from here")
+        if first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
+            return fail("lifting the block collides")
+        start = lift_ik.q
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id]
+    turn = float(
+        np.arctan2(place[1] - base[1], place[0] - base[0])
+        - np.arctan2(b0[1] - base[1], b0[0] - base[0])
+    )
+    shift = np.array([*(place - b0[:2]), carry_z - b0[2]])
+    drop = np.array([0.0, 0.0, down_z - carry_z])
+    high = down = None
+    for R in (R0, _rotate_z(turn) @ R0):
+        # the palm moves so that the block's centre lands above the place point
+        p_high = b0 + shift + R @ R0.T @ (p0 - b0)
+        seed = np.array([start[0] + turn, *start[1:]])
+        h = checker.solve_ik(p_high, R, seed)
+        d = checker.solve_ik(p_high + drop, R, h.q)
+        ok = h.found and d.found and not checker.collides(h.q)
+        # the set-down may graze the table only in its last 2 * clearance
+        near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
+        if (
+            ok
+            and near.found
+            and first_collision(checker, np.stack([h.q, near.q])) is None
+            and first_collision(descent, np.stack([h.q, d.q])) is None
+        ):
+            high, down = h.q, d.q
+            break
+    if high is None or down is None:
+        return fail("no collision-free posture above the place point")
+    transit = plan_arm_path(checker, start, high, resolution=resolution)
+    if not transit.found:
+        return fail(f"transit: {transit.reason}", transit)
+    path = dedupe_path(np.vstack([q0[None], transit.path, down[None]]))
+    block_goal, _ = checker.carried_pose(down)
+    return DeliveryPlan(True, path, transit, block_goal, "reached goal")

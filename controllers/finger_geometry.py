@@ -1,0 +1,131 @@
+"""The perceived block and where the fingers are against it (section 5.2, "Wrench Closure": "finger
+links penetrates the object"): the perceived prism and its exact signed distance, each finger's
+clearance from it and its links' penetration into it, fingertip positions, and the distal links'
+pad, palmar and sideways directions. The reachability test (:mod:`controllers.hand_reach`) and
+the grip (:mod:`controllers.grip`) judge postures with these measures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controllers.finger_samples import PAD_NORMAL_LOCAL, POINTS_PER_LINK
+from controllers.reach import ReachTarget
+from hand_sim import robot
+
+
+@dataclass(frozen=True, eq=False)
+class PerceivedPrism:
+    """The block as perceived: its footprint polygon turned by ``yaw``, centred at
+    ``position_xy``, standing from ``bottom`` to ``top`` (m, world z)."""
+
+    footprint: NDArray[np.float64]  #: (k, 2) world vertices, CCW
+    bottom: float
+    top: float
+
+    @classmethod
+    def of(cls, target: ReachTarget, bottom: float) -> PerceivedPrism:
+        """The prism of ``target``'s footprint from ``bottom`` up to its top face."""
+        return cls(target.footprint(), float(bottom), float(target.top_z))
+
+    def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Exact signed distance (m) of points (..., 3) to the prism; negative inside."""
+        p = np.asarray(points, dtype=float)
+        xy = p[..., :2]
+        a = self.footprint
+        b = np.roll(a, -1, axis=0)
+        ab = b - a
+        t = np.clip(
+            np.einsum("...kd,kd->...k", xy[..., None, :] - a, ab) / np.einsum("kd,kd->k", ab, ab),
+            0.0,
+            1.0,
+        )
+        closest = a + t[..., None] * ab
+        edge_dist = np.linalg.norm(xy[..., None, :] - closest, axis=-1).min(axis=-1)
+        cross = ab[:, 0] * (xy[..., None, 1] - a[:, 1]) - ab[:, 1] * (xy[..., None, 0] - a[:, 0])
+        inside_xy = np.all(cross >= 0.0, axis=-1)
+        d_xy = np.where(inside_xy, -edge_dist, edge_dist)
+        d_z = np.maximum(self.bottom - p[..., 2], p[..., 2] - self.top)
+        outside = np.hypot(np.maximum(d_xy, 0.0), np.maximum(d_z, 0.0))
+        return np.where((d_xy > 0) | (d_z > 0), outside, np.maximum(d_xy, d_z))
+
+
+def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:
+    """(finger, geom id) of every colliding capsule of the fingers."""
+    out = []
+    for g in range(model.ngeom):
+        if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_CAPSULE:
+            continue
+        if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        name = model.body(model.geom_bodyid[g]).name
+        for finger in robot.FINGERS:
+            if name.startswith(robot.HAND_PREFIX + finger + "_"):
+                out.append((finger, g))
+    return out
+
+
+def finger_clearance(
+    model: mujoco.MjModel, data: mujoco.MjData, prism: PerceivedPrism
+) -> NDArray[np.float64]:
+    """(4,) smallest distance (m) of each finger's links, pads included, to ``prism`` (negative:
+    inside) for the kinematics in ``data``, order ff, mf, rf, th."""
+    frac = np.linspace(-1.0, 1.0, POINTS_PER_LINK)
+    out = np.full(len(robot.FINGERS), np.inf)
+    for finger, g in _finger_capsules(model):
+        axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+        radius, half = model.geom_size[g, 0], model.geom_size[g, 1]
+        pts = data.geom_xpos[g] + frac[:, None] * half * axis
+        f = robot.FINGERS.index(finger)
+        out[f] = min(out[f], float(prism.signed_distance(pts).min() - radius))
+    return out
+
+
+def link_penetration(
+    model: mujoco.MjModel, data: mujoco.MjData, prism: PerceivedPrism
+) -> dict[str, float]:
+    """Deepest penetration (m, >= 0) of each finger's proximal and middle links into ``prism``
+    for the kinematics in ``data`` (capsule axes sampled at :data:`POINTS_PER_LINK` points; the
+    distal pads are meant to press into it)."""
+    frac = np.linspace(-1.0, 1.0, POINTS_PER_LINK)
+    out = dict.fromkeys(robot.FINGERS, 0.0)
+    for finger, g in _finger_capsules(model):
+        if model.body(model.geom_bodyid[g]).name.endswith("_distal"):
+            continue  # the pad presses into the block by design
+        axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+        radius, half = model.geom_size[g, 0], model.geom_size[g, 1]
+        pts = data.geom_xpos[g] + frac[:, None] * half * axis
+        depth = float((radius - prism.signed_distance(pts)).max())
+        out[finger] = max(out[finger], depth)
+    return out
+
+
+def fingertips_at(model: mujoco.MjModel, qpos: ArrayLike) -> NDArray[np.float64]:
+    """(4, 3) world fingertip positions (ff, mf, rf, th) of ``model`` at configuration ``qpos``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = np.asarray(qpos, dtype=float)
+    mujoco.mj_kinematics(model, data)
+    sites = [model.site(robot.qualified(s)).id for s in robot.FINGERTIP_SITES]
+    return data.site_xpos[sites].copy()
+
+
+def finger_palmar(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world direction of each distal link's palmar normal (z)."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3)[:, 2] for b in bodies])
+
+
+def finger_sideways(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world direction of each distal link's sideways axis (its flexion axis, x)."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3)[:, 0] for b in bodies])
+
+
+def pad_normals(model: mujoco.MjModel, data: mujoco.MjData) -> NDArray[np.float64]:
+    """(4, 3) world pad normals (out of the pad) of the fingertips, order ff, mf, rf, th."""
+    bodies = [model.body(robot.hand_name(f"{f}_distal")).id for f in robot.FINGERS]
+    return np.stack([data.xmat[b].reshape(3, 3) @ PAD_NORMAL_LOCAL for b in bodies])
