@@ -41,13 +41,13 @@ from numpy.typing import ArrayLike, NDArray
 from controllers.cspace import CollisionChecker
 from controllers.fine_reach import GRASP_DEPTH, project_to_surface
 from controllers.hand_reach import (
-    BOTTOM_MARGIN,
     MAX_PAD_ANGLE,
-    TOP_MARGIN,
     FingerContacts,
     HandReach,
     PerceivedPrism,
+    contacts_at_tips,
     fingertips_at,
+    given_contacts,
     grip_targets,
     pad_normals,
 )
@@ -156,35 +156,6 @@ def top_postures(
     return out
 
 
-def _contacts_on(
-    target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """World xy (4, 2) and outward normals (4, 2) of contacts ``theta`` on ``target``, and the
-    height (4,) finger f takes a contact at: its fingertip's, kept between the table and the
-    top by the reach test's margins (the task cycle's rule, :func:`hand_reach.finger_contacts`)."""
-    frames = target.polygon.locate(theta)
-    c, s = np.cos(target.yaw), np.sin(target.yaw)
-    R = np.array([[c, -s], [s, c]])
-    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
-    return frames.point @ R.T + np.asarray(target.position_xy), frames.normal @ R.T, z
-
-
-def _given(
-    theta: NDArray[np.float64],
-    xy: NDArray[np.float64],
-    nxy: NDArray[np.float64],
-    z: NDArray[np.float64],
-    order: NDArray[np.int_],
-) -> FingerContacts:
-    """Finger f on contact ``order[f]``, at finger f's height ``z[f]``."""
-    return FingerContacts(
-        np.column_stack([xy[order], z]),
-        np.column_stack([nxy[order], np.zeros(len(order))]),
-        theta[order],
-        tuple(int(i) for i in order),
-    )
-
-
 def ranked_starts(
     target: ReachTarget, theta: ArrayLike, postures: list[HandPosture], table_z: float
 ) -> list[tuple[HandPosture, FingerContacts]]:
@@ -194,7 +165,7 @@ def ranked_starts(
     th = np.asarray(theta, dtype=float)
     keys, pairs = [], []
     for i, p in enumerate(postures):
-        xy, nxy, z = _contacts_on(target, th, p.tips, table_z)
+        xy, nxy, z = contacts_at_tips(target, th, p.tips, table_z)
         points = np.concatenate(
             [xy[ORDERS], np.broadcast_to(z[None, :, None], (len(ORDERS), 4, 1))], axis=2
         )
@@ -208,7 +179,7 @@ def ranked_starts(
     out = []
     for j in sorted(range(len(keys)), key=keys.__getitem__):
         i, k, xy, nxy, z = pairs[j]
-        out.append((postures[i], _given(th, xy, nxy, z, ORDERS[k])))
+        out.append((postures[i], given_contacts(th, xy, nxy, z, ORDERS[k])))
     return out
 
 

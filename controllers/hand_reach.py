@@ -398,7 +398,7 @@ class FingerContacts:
     contact_of_finger: tuple[int, ...]  #: index of each finger's contact in the controller's set
 
 
-def _contacts_for(
+def contacts_at_tips(
     target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """World xy (n, 2), normals (n, 2) of contacts ``theta`` and the height each finger would
@@ -411,13 +411,14 @@ def _contacts_for(
     return xy, frames.normal @ R.T, z
 
 
-def _given(
+def given_contacts(
     theta: NDArray[np.float64],
     xy: NDArray[np.float64],
     nxy: NDArray[np.float64],
     z: NDArray[np.float64],
     order: ArrayLike,
 ) -> FingerContacts:
+    """Finger f on contact ``order[f]`` (:func:`contacts_at_tips`), at finger f's height."""
     order = np.asarray(order, dtype=int)
     points = np.column_stack([xy[order], z])
     normals = np.column_stack([nxy[order], np.zeros(len(order))])
@@ -434,7 +435,7 @@ def finger_contacts(
     by the margins above."""
     th = np.asarray(theta, dtype=float)
     tips = np.asarray(tips, dtype=float)
-    xy, nxy, z = _contacts_for(target, th, tips, table_z)
+    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
     # contact j as finger f would take it: at finger f's height
     candidate = np.concatenate(
         [np.broadcast_to(xy, (4, 4, 2)), z[:, None, None] * np.ones((4, 4, 1))], axis=2
@@ -443,7 +444,7 @@ def finger_contacts(
     rows, cols = linear_sum_assignment(cost)
     order = np.empty(4, dtype=int)
     order[rows] = cols
-    return _given(th, xy, nxy, z, order)
+    return given_contacts(th, xy, nxy, z, order)
 
 
 #: Assignments :func:`reachable_contacts` tries, nearest first.
@@ -476,13 +477,13 @@ def reachable_contacts(
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
     table_z = prism.bottom
-    xy, nxy, z = _contacts_for(target, th, tips, table_z)
+    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
     perms = np.array(list(itertools.permutations(range(len(th)))))
     pts = np.concatenate([xy[perms], np.broadcast_to(z[None, :, None], (len(perms), 4, 1))], 2)
     cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
     first: tuple[FingerContacts, HandReach] | None = None
     for k in np.argsort(cost, kind="stable")[:tries]:
-        contacts = _given(th, xy, nxy, z, perms[k])
+        contacts = given_contacts(th, xy, nxy, z, perms[k])
         reach = check_reach(
             world,
             prism,
@@ -496,7 +497,7 @@ def reachable_contacts(
             squeeze=squeeze,
         )
         if slide and reach.heights is not None:
-            contacts = _given(th, xy, nxy, reach.heights, perms[k])
+            contacts = given_contacts(th, xy, nxy, reach.heights, perms[k])
         if reach.reachable:
             return contacts, reach
         if first is None:

@@ -38,6 +38,7 @@ from controllers.hand_reach import (
     grip_targets,
     reachable_contacts,
 )
+from controllers.motion import ApproachPlan
 from controllers.palm_candidates import PalmPose
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
@@ -92,7 +93,7 @@ class PalmPoseResult:
     load: float | None = None
     tilt: float | None = None
     palm_rotation: NDArray[np.float64] | None = None
-    approach: Any | None = None
+    approach: ApproachPlan | None = None
 
 
 def _configuration(model: mujoco.MjModel, qpos: NDArray[np.float64]) -> dict[str, Any]:
@@ -185,7 +186,7 @@ def search_poses(
     query: ReachQuery,
     poses: Sequence[PalmPose],
     contacts_of: Callable[[PalmPose], NDArray[np.float64]],
-    plan_approach: Callable[[NDArray[np.float64], FingerContacts], Any | None],
+    plan_approach: Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None],
     *,
     tries: int,
     reachable_only: bool,
@@ -247,7 +248,7 @@ def search_poses(
 def _accepted(
     world: World,
     candidate: tuple[float, NDArray[np.float64], FingerContacts, str, HandReach, int],
-    plan_approach: Callable[[NDArray[np.float64], FingerContacts], Any | None],
+    plan_approach: Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None],
 ) -> PalmPoseResult | None:
     """The result of ``candidate`` (load, qpos, contacts, label, reach, index) when
     ``plan_approach`` approaches it, else None."""
