@@ -34,53 +34,18 @@ from scipy.optimize import linear_sum_assignment
 from controllers.fine_reach import GRASP_DEPTH
 from controllers.finger_geometry import (
     PerceivedPrism,
-    finger_clearance,
     finger_palmar,
     finger_sideways,
     fingertips_at,
     link_penetration,
     pad_normals,
 )
-from controllers.finger_samples import PAD_NORMAL_LOCAL, Criteria, FingerSamples
+from controllers.finger_samples import Criteria, FingerSamples
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
 from hand_sim.indices import RobotIndices
 from hand_sim.world import World
-
-#: The reach test, plus the names re-exported from controllers.finger_geometry (and
-#: controllers.finger_samples.PAD_NORMAL_LOCAL) that used to live or be imported here.
-__all__ = [
-    "ASSIGNMENTS_TRIED",
-    "BOTTOM_MARGIN",
-    "CONTACT_SEPARATION",
-    "CONTACT_TOLERANCE",
-    "IK_ITERATIONS",
-    "MAX_LINK_PENETRATION",
-    "MAX_PAD_ANGLE",
-    "MAX_PAD_SIDEWAYS",
-    "MIN_PAD_PALMAR",
-    "MIN_PAD_SPACING",
-    "PAD_NORMAL_LOCAL",
-    "SAMPLE_TOLERANCE",
-    "SEPARATION_MARGIN",
-    "SQUEEZE_REACH",
-    "TOP_MARGIN",
-    "FingerContacts",
-    "HandReach",
-    "PerceivedPrism",
-    "assign_fingers",
-    "check_reach",
-    "finger_clearance",
-    "finger_contacts",
-    "finger_palmar",
-    "finger_sideways",
-    "fingertips_at",
-    "grip_targets",
-    "link_penetration",
-    "pad_normals",
-    "reachable_contacts",
-]
 
 #: Smallest distance (m) between the centres of two fingertip pads on their contacts (a pad's
 #: centre is one pad radius out from its contact along the face normal): two 8.5 mm pads need
@@ -329,7 +294,7 @@ class FingerContacts:
     contact_of_finger: tuple[int, ...]  #: index of each finger's contact in the controller's set
 
 
-def _contacts_for(
+def contacts_at_tips(
     target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """World xy (n, 2), normals (n, 2) of contacts ``theta`` and the height each finger would
@@ -342,13 +307,14 @@ def _contacts_for(
     return xy, frames.normal @ R.T, z
 
 
-def _given(
+def given_contacts(
     theta: NDArray[np.float64],
     xy: NDArray[np.float64],
     nxy: NDArray[np.float64],
     z: NDArray[np.float64],
     order: ArrayLike,
 ) -> FingerContacts:
+    """Finger f on contact ``order[f]`` (:func:`contacts_at_tips`), at finger f's height."""
     order = np.asarray(order, dtype=int)
     points = np.column_stack([xy[order], z])
     normals = np.column_stack([nxy[order], np.zeros(len(order))])
@@ -365,7 +331,7 @@ def finger_contacts(
     by the margins above."""
     th = np.asarray(theta, dtype=float)
     tips = np.asarray(tips, dtype=float)
-    xy, nxy, z = _contacts_for(target, th, tips, table_z)
+    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
     # contact j as finger f would take it: at finger f's height
     candidate = np.concatenate(
         [np.broadcast_to(xy, (4, 4, 2)), z[:, None, None] * np.ones((4, 4, 1))], axis=2
@@ -374,7 +340,7 @@ def finger_contacts(
     rows, cols = linear_sum_assignment(cost)
     order = np.empty(4, dtype=int)
     order[rows] = cols
-    return _given(th, xy, nxy, z, order)
+    return given_contacts(th, xy, nxy, z, order)
 
 
 #: Assignments :func:`reachable_contacts` tries, nearest first.
@@ -407,13 +373,13 @@ def reachable_contacts(
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
     table_z = prism.bottom
-    xy, nxy, z = _contacts_for(target, th, tips, table_z)
+    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
     perms = np.array(list(itertools.permutations(range(len(th)))))
     pts = np.concatenate([xy[perms], np.broadcast_to(z[None, :, None], (len(perms), 4, 1))], 2)
     cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
     first: tuple[FingerContacts, HandReach] | None = None
     for k in np.argsort(cost, kind="stable")[:tries]:
-        contacts = _given(th, xy, nxy, z, perms[k])
+        contacts = given_contacts(th, xy, nxy, z, perms[k])
         reach = check_reach(
             world,
             prism,
@@ -427,7 +393,7 @@ def reachable_contacts(
             squeeze=squeeze,
         )
         if slide and reach.heights is not None:
-            contacts = _given(th, xy, nxy, reach.heights, perms[k])
+            contacts = given_contacts(th, xy, nxy, reach.heights, perms[k])
         if reach.reachable:
             return contacts, reach
         if first is None:

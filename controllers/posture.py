@@ -76,10 +76,6 @@ PALM_DISTANCE = 0.003
 CLEARANCE_SLACK = 0.001
 
 
-#: :class:`hand_sim.indices.RobotIndices` under the name the task cycle imports (fsm.handlers).
-HandIndices = RobotIndices
-
-
 def finger_manipulability(
     model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndices
 ) -> NDArray[np.float64]:
@@ -445,9 +441,8 @@ def world_log_manipulability(world: World) -> float:
 
 
 #: Time (s) over which servo targets move to a new posture (then they settle for
-#: :data:`controllers.timing.SERVO_SETTLE_TIME`, imported by fsm.handlers as SETTLE_TIME).
+#: :data:`controllers.timing.SERVO_SETTLE_TIME`).
 MOVE_TIME = 1.0
-SETTLE_TIME = SERVO_SETTLE_TIME
 #: A pad pressing on something with more than this (N) is in contact (see :func:`apply_posture`).
 CONTACT_FORCE = 0.05
 #: Steady-state servo error corrections after a move (see :func:`apply_posture`).

@@ -21,74 +21,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.arm_path import (
-    BOX_MARGIN,
     DEFAULT_RESOLUTION,
-    LINK_RADIUS,
-    LINK_TRIES,
-    LINKS,
-    MAX_JOINT_SPEED,
-    MAX_REPAIRS,
-    PLANNED_JOINTS,
     ROLL,
-    VERIFY_STEP,
     ArmPath,
-    Execution,
-    execute_path,
-    first_collision,
     plan_arm_path,
-    robot_contacts,
 )
 from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker
-from controllers.delivery import (
-    CARRY_HEIGHT,
-    SET_DOWN_CLEARANCE,
-    SET_DOWN_HOVER,
-    DeliveryPlan,
-    plan_delivery,
-)
 from controllers.errors import ReachError
 from controllers.grasp.polygon import Polygon
 from hand_sim import robot
 from hand_sim.world import World
-
-#: Coarse reach, plus the names re-exported from controllers.arm_path (the planner and its
-#: execution) and controllers.delivery (the delivery), which used to live here.
-__all__ = [
-    "APPROACHES",
-    "APPROACH_GAP",
-    "BOX_MARGIN",
-    "CARRY_HEIGHT",
-    "DEFAULT_RESOLUTION",
-    "FINGER_REACH",
-    "IK_SEEDS",
-    "LATERAL_DEPTH",
-    "LINKS",
-    "LINK_RADIUS",
-    "LINK_TRIES",
-    "MAX_JOINT_SPEED",
-    "MAX_REPAIRS",
-    "PLANNED_JOINTS",
-    "PRESHAPE",
-    "ROLL",
-    "SET_DOWN_CLEARANCE",
-    "SET_DOWN_HOVER",
-    "VERIFY_STEP",
-    "ApproachGoal",
-    "ArmPath",
-    "CoarseReachPlan",
-    "DeliveryPlan",
-    "Execution",
-    "PerceivedBlock",
-    "ReachTarget",
-    "execute_path",
-    "first_collision",
-    "goal_poses",
-    "plan_arm_path",
-    "plan_coarse_reach",
-    "plan_delivery",
-    "robot_contacts",
-    "solve_goal",
-]
 
 #: The approaches of section 5.2 ("top or lateral grasp").
 APPROACHES: tuple[str, ...] = ("top", "lateral")

@@ -18,6 +18,7 @@ from controllers.grasp.session import GraspSynthesis
 from controllers.grip import Grip
 from controllers.hand_reach import FingerContacts, HandReach
 from controllers.reach import CoarseReachPlan, ReachTarget
+from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from hand_sim.world import World
 
@@ -43,6 +44,7 @@ class EpisodeOptions:
     out: Path = Path("runs/clutter3-0")
     record: bool = True
     models: Path | None = None  #: trained models folder (default: the shipped ones)
+    config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
 
 @dataclass
@@ -111,6 +113,7 @@ class Episode:
     expected_load: float = 0.0  #: N, perceived volume x wood density x g
     #: sampled finger postures for lateral reachability searches (drawn on first use)
     finger_samples: Any | None = None
+    config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
     @property
     def record(self) -> CycleRecord:

@@ -13,7 +13,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ import numpy as np
 
 from controllers.errors import ReachError
 from controllers.grasp.registry import make_composer
+from fsm.config import DEFAULT_CONFIG
 from fsm.context import Episode, EpisodeOptions, out_paths
 from fsm.handlers import HANDLERS, TaskFailedError
 from fsm.layout import episode_scene
@@ -83,6 +84,15 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def options_json(options: EpisodeOptions) -> dict[str, Any]:
+    """The summary's record of ``options``: every flag, and the task cycle's tuning only when
+    it is not the default (:data:`fsm.config.DEFAULT_CONFIG`)."""
+    out = {f.name: getattr(options, f.name) for f in fields(options) if f.name != "config"}
+    if options.config != DEFAULT_CONFIG:
+        out["config"] = asdict(options.config)
+    return _jsonable(out)
 
 
 def write_summary(path: Path, result: EpisodeResult) -> None:
@@ -158,12 +168,12 @@ def run_episode(
 
             recorder_factory = EpisodeRecorder
         recorder = recorder_factory(rrd_path, world)
-    ep = Episode(options, world, rng, composer, recorder)
+    ep = Episode(options, world, rng, composer, recorder, config=options.config)
     result = EpisodeResult(
         success=False,
         failure=None,
         failure_detail="",
-        options=_jsonable(asdict(options)),
+        options=options_json(options),
         scene=scene.name,
         rrd=str(rrd_path) if options.record else None,
     )

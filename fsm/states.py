@@ -42,6 +42,23 @@ class Failure(Enum):
     INTERRUPTED = "interrupted"
 
 
+class TaskFailedError(Exception):
+    """A state ends the episode: ``failure`` names the reason, ``detail`` says more."""
+
+    def __init__(self, failure: Failure, detail: str = "") -> None:
+        super().__init__(f"{failure.value}: {detail}" if detail else failure.value)
+        self.failure = failure
+        self.detail = detail
+
+
+@dataclass(frozen=True)
+class Step:
+    """A state's result: the next state and why."""
+
+    next: State
+    reason: str
+
+
 #: Reasons any state can end with.
 ANY_STATE_FAILURES = (Failure.SIMULATION_UNSTABLE, Failure.TIME_BUDGET_EXCEEDED)
 #: Times Wrench Closure may send the machine back to Posture Control before giving up (the paper's

@@ -13,10 +13,11 @@ import pytest
 
 from controllers.finger_samples import Criteria, FingerSamples
 from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
-from controllers.posture import HandIndices, solve_posture
+from controllers.posture import solve_posture
 from controllers.reach import ReachTarget, goal_poses
 from fsm.run import main
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
@@ -37,7 +38,7 @@ def test_sliding_targets_keep_their_place_and_take_the_fingertips_height(world: 
     of the hand's reach with the arm held, but with their heights free to slide the fingertips
     reach their horizontal places, at heights inside the range given."""
     tips = world.fingertip_positions()
-    idx = HandIndices.of(world.model)
+    idx = RobotIndices.of(world.model)
     # each target a millimetre from its fingertip horizontally, 5 cm above it
     goal = tips + np.array([0.001, -0.001, 0.05])
     fixed = solve_posture(world, goal, optimize=False, joints="hand")
@@ -66,7 +67,7 @@ def test_finger_samples_are_the_hands_forward_kinematics_in_the_palm_frame(
     m = world.model
     data = mujoco.MjData(m)
     data.qpos[:] = world.data.qpos
-    idx = HandIndices.of(m)
+    idx = RobotIndices.of(m)
     palm = m.body(robot.hand_name(robot.PALM_BODY)).id
     for i in (0, 17, 1999):
         data.qpos[idx.finger_qpos.ravel()] = samples.q[i].ravel()
@@ -129,7 +130,7 @@ def test_the_normal_squeeze_pushes_along_the_contact_normal(world: World) -> Non
     inward normal (J^T F = K d has F parallel to -n), and moving along d drives the fingertip
     into the face."""
     m = world.model
-    idx = HandIndices.of(m)
+    idx = RobotIndices.of(m)
     qpos = world.data.qpos.copy()
     qpos[idx.finger_qpos.ravel()] = [0.0, 0.9, 0.7, 0.4] * 4
     normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [-0.6, 0.8, 0], [0, 0, 1.0]])

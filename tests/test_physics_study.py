@@ -17,7 +17,6 @@ import pytest
 from controllers.cspace import PALM_SITE
 from controllers.finger_geometry import fingertips_at, pad_normals
 from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
-from controllers.posture import HandIndices
 from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
 from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
 from experiments.physics.study import (
@@ -30,6 +29,7 @@ from experiments.physics.study import (
     physical_test,
     run_job,
 )
+from hand_sim.indices import RobotIndices
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -106,7 +106,7 @@ def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() 
     model = sw.world.model
     data = mujoco.MjData(model)
     data.qpos[:] = placed.qpos
-    data.qpos[HandIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
+    data.qpos[RobotIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
     mujoco.mj_kinematics(model, data)
     palm_z = data.site_xmat[model.site(PALM_SITE).id].reshape(3, 3)[:, 2]
     assert np.degrees(np.arccos(-palm_z[2])) <= np.degrees(MAX_PALM_TILT) + 1e-6

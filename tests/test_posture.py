@@ -8,12 +8,12 @@ import pytest
 
 from controllers.errors import PostureError
 from controllers.posture import (
-    HandIndices,
     apply_posture,
     finger_manipulability,
     solve_posture,
     world_log_manipulability,
 )
+from hand_sim.indices import RobotIndices
 from tests.reach_fixtures import hover_over_target
 
 
@@ -28,7 +28,7 @@ def test_manipulability_matches_a_finite_difference_jacobian(hovering):
     data = mujoco.MjData(model)
     data.qpos[:] = hovering.data.qpos
     mujoco.mj_forward(model, data)
-    idx = HandIndices.of(model)
+    idx = RobotIndices.of(model)
     w = finger_manipulability(model, data, idx)
     h = 1e-6
     for f in range(4):

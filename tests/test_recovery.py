@@ -6,12 +6,13 @@ seen in the transition log."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 from experiments.bench.jobs import blocks_for_seed
-from fsm import handlers
+from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.context import EpisodeOptions
 from fsm.layout import SLOT_SPACING, episode_scene
 from fsm.machine import run_episode
@@ -21,8 +22,8 @@ from fsm.states import State, allowed
 CONTROLLER = "pi"
 
 
-def _random_episode(seed: int, out: Path):
-    """The bench's episode of ``seed`` (random scene, 3-5 blocks)."""
+def _random_episode(seed: int, out: Path, config: TaskConfig = DEFAULT_CONFIG):
+    """The bench's episode of ``seed`` (random scene, 3-5 blocks), tuned by ``config``."""
     options = EpisodeOptions(
         scene="random",
         seed=seed,
@@ -30,6 +31,7 @@ def _random_episode(seed: int, out: Path):
         controller=CONTROLLER,
         out=out,
         record=False,
+        config=config,
     )
     return run_episode(options)
 
@@ -79,11 +81,10 @@ def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Pat
     _delivered_physically(result)
 
 
-def test_regrasps_are_bounded_and_keep_the_failure_reason(monkeypatch, tmp_path: Path) -> None:
+def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> None:
     """With no regrasp allowed, the same squeeze failure ends the episode with the reason of
     Grasp Object (fingers cannot reach), not the regrasp's."""
-    monkeypatch.setattr(handlers, "MAX_REGRASPS", 0)
-    result = _random_episode(2, tmp_path)
+    result = _random_episode(2, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0))
     assert not result.success
     assert result.failure == "fingers cannot reach"
     assert "squeeze did not reach the grip force" in result.failure_detail

@@ -15,16 +15,17 @@ needs each grasp placed quickly and the same way every time, not the task cycle'
   fingertip's height). The task cycle's rule (the nearest assignment only, ranked by distance)
   gives a finger a face its pad turns away from on most evenly spread grasps (a square with one
   contact per face); see docs/physics_study.md for the counts;
-- **Posture Control** (as the task cycle's ``fsm.handlers._reachable_posture`` does for a top
-  grasp): from each of the first :data:`SEEDS_TRIED` (seed, assignment) pairs, arm and hand IK
-  (:func:`controllers.posture.solve_posture`, ``joints="arm+hand"``, collision avoidance with
-  the fingers allowed to touch the block, fingertips :data:`SQUEEZE_REACH` inside each contact
-  and pads facing it, :func:`controllers.hand_reach.grip_targets`); a posture that tilts the
-  palm more than :data:`MAX_PALM_TILT` from vertical is refused (the task cycle's limit for a
-  top grasp); the contacts are then confirmed from that posture with the task cycle's
-  reachability test (:func:`controllers.hand_reach.reachable_contacts`: pad spacing, hand IK,
-  pad angle, link penetration). The first confirmed posture places the hand; when none is, the
-  grasp is unreachable with the last reason.
+- **Posture Control** (the task cycle's IK seeding for a top grasp, one implementation:
+  :func:`controllers.palm_pose.search_seeds`): from each of the first :data:`SEEDS_TRIED`
+  (seed, assignment) pairs, arm and hand IK (:func:`controllers.posture.solve_posture`,
+  ``joints="arm+hand"``, collision avoidance with the fingers allowed to touch the block,
+  fingertips :data:`SQUEEZE_REACH` inside each contact and pads facing it,
+  :func:`controllers.hand_reach.grip_targets`); a posture that tilts the palm more than
+  :data:`MAX_PALM_TILT` from vertical is refused (the task cycle's limit for a top grasp); the
+  contacts are then confirmed from that posture with the task cycle's reachability test
+  (:func:`controllers.hand_reach.reachable_contacts`: pad spacing, hand IK, pad angle, link
+  penetration). The first confirmed posture places the hand; when none is, the grasp is
+  unreachable with the last reason.
 Nothing here moves the simulation; the study sets the arm and hand where this says.
 """
 
@@ -39,19 +40,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.fine_reach import GRASP_DEPTH, project_to_surface
+from controllers.finger_geometry import PerceivedPrism, fingertips_at, pad_normals
 from controllers.hand_reach import (
-    BOTTOM_MARGIN,
     MAX_PAD_ANGLE,
-    TOP_MARGIN,
     FingerContacts,
     HandReach,
-    PerceivedPrism,
-    fingertips_at,
+    contacts_at_tips,
+    given_contacts,
     grip_targets,
-    pad_normals,
-    reachable_contacts,
 )
-from controllers.posture import HandIndices, solve_posture
+from controllers.palm_candidates import DEFAULT_PALM_POSE, robot_base_xy
+from controllers.palm_pose import ReachQuery, SeedStart, search_seeds
+from controllers.posture import solve_posture
 from controllers.reach import PRESHAPE, ReachTarget
 from hand_sim import robot
 from hand_sim.blocks import GEOM_SUFFIX
@@ -67,8 +67,10 @@ YAWS = 12
 #: 0) 6 placed 76, 12 placed 77 at about twice the time of a grasp no pair places.
 SEEDS_TRIED = 6
 #: Largest tilt (rad) of the palm's approach axis from vertical (the task cycle's limit for a
-#: top grasp, fsm.handlers.MAX_PALM_TILT["top"]).
-MAX_PALM_TILT = np.deg2rad(12.0)
+#: top grasp, :attr:`controllers.palm_candidates.PalmPoseParams.max_palm_tilt_top`).
+MAX_PALM_TILT = DEFAULT_PALM_POSE.max_palm_tilt_top
+#: The palm's approach axis when it points straight down.
+DOWN = np.array([0.0, 0.0, -1.0])
 #: Arm IK seed (shoulder, elbow, wrist pitch, wrist roll) of a palm-down posture over the table;
 #: the waist is turned towards the block.
 ARM_SEED = (0.3, 1.5, 1.3, 0.0)
@@ -108,11 +110,6 @@ def _palm_down(yaw: float) -> NDArray[np.float64]:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag([1.0, -1.0, -1.0])
 
 
-def _indices(model: mujoco.MjModel) -> tuple[list[int], NDArray[np.int_]]:
-    arm = [model.jnt_qposadr[model.joint(robot.qualified(j)).id] for j in robot.ARM_JOINTS]
-    return arm, HandIndices.of(model).finger_qpos.ravel()
-
-
 def top_postures(
     world: World,
     target: ReachTarget,
@@ -126,10 +123,8 @@ def top_postures(
         raise ValueError(f"yaws must be >= 1, got {yaws}")
     model = world.model
     checker = CollisionChecker(world, hand_q=PRESHAPE)
-    arm_adr, hand_adr = _indices(model)
-    base = world.data.xpos[
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
-    ]
+    arm_adr, hand_adr = robot.arm_qpos_addresses(model), robot.hand_qpos_addresses(model)
+    base = robot_base_xy(world)
     waist = float(np.arctan2(target.position_xy[1] - base[1], target.position_xy[0] - base[0]))
     data = mujoco.MjData(model)
     out = []
@@ -159,35 +154,6 @@ def top_postures(
     return out
 
 
-def _contacts_on(
-    target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """World xy (4, 2) and outward normals (4, 2) of contacts ``theta`` on ``target``, and the
-    height (4,) finger f takes a contact at: its fingertip's, kept between the table and the
-    top by the reach test's margins (the task cycle's rule, :func:`hand_reach.finger_contacts`)."""
-    frames = target.polygon.locate(theta)
-    c, s = np.cos(target.yaw), np.sin(target.yaw)
-    R = np.array([[c, -s], [s, c]])
-    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
-    return frames.point @ R.T + np.asarray(target.position_xy), frames.normal @ R.T, z
-
-
-def _given(
-    theta: NDArray[np.float64],
-    xy: NDArray[np.float64],
-    nxy: NDArray[np.float64],
-    z: NDArray[np.float64],
-    order: NDArray[np.int_],
-) -> FingerContacts:
-    """Finger f on contact ``order[f]``, at finger f's height ``z[f]``."""
-    return FingerContacts(
-        np.column_stack([xy[order], z]),
-        np.column_stack([nxy[order], np.zeros(len(order))]),
-        theta[order],
-        tuple(int(i) for i in order),
-    )
-
-
 def ranked_starts(
     target: ReachTarget, theta: ArrayLike, postures: list[HandPosture], table_z: float
 ) -> list[tuple[HandPosture, FingerContacts]]:
@@ -197,7 +163,7 @@ def ranked_starts(
     th = np.asarray(theta, dtype=float)
     keys, pairs = [], []
     for i, p in enumerate(postures):
-        xy, nxy, z = _contacts_on(target, th, p.tips, table_z)
+        xy, nxy, z = contacts_at_tips(target, th, p.tips, table_z)
         points = np.concatenate(
             [xy[ORDERS], np.broadcast_to(z[None, :, None], (len(ORDERS), 4, 1))], axis=2
         )
@@ -211,7 +177,7 @@ def ranked_starts(
     out = []
     for j in sorted(range(len(keys)), key=keys.__getitem__):
         i, k, xy, nxy, z = pairs[j]
-        out.append((postures[i], _given(th, xy, nxy, z, ORDERS[k])))
+        out.append((postures[i], given_contacts(th, xy, nxy, z, ORDERS[k])))
     return out
 
 
@@ -226,44 +192,30 @@ def place_hand(
     checker: CollisionChecker | None = None,
 ) -> Placement:
     """Posture Control from the first ``seeds`` of :func:`ranked_starts` for contacts ``theta``
-    (contact coordinates on ``target``'s polygon); see the module docstring. ``checker``: the
-    world's collision checker, for the palm's pose (default: built here)."""
+    (contact coordinates on ``target``'s polygon): the task cycle's IK seeding
+    (:func:`controllers.palm_pose.search_seeds`) with these starts, the palm's tilt measured
+    from vertical; see the module docstring. ``checker``: the world's collision checker, for
+    the palm's pose (default: built here)."""
     if not postures:
         return Placement(False, "the arm reaches no palm-down posture over the block")
     th = np.asarray(theta, dtype=float)
-    model = world.model
     checker = CollisionChecker(world) if checker is None else checker
-    arm_adr, hand_adr = _indices(model)
-    touchable = world.scene.target + GEOM_SUFFIX
-    reason = "no start tried"
-    for seed, given in ranked_starts(target, th, postures, prism.bottom)[:seeds]:
-        tips, centres = grip_targets(given.points, given.normals)
-        sol = solve_posture(
-            world,
-            tips,
-            joints="arm+hand",
-            avoid_collisions=True,
-            touchable=touchable,
-            fingers_may_touch=True,
-            pad_centres=centres,
-            qpos=seed.qpos,
-        )
-        if not sol.reachable:
-            reason = f"Posture Control: {', '.join(sol.unreachable)} cannot reach"
-            continue
-        _, R = checker.palm_pose(sol.arm_q)
-        tilt = float(np.arccos(np.clip(-R[2, 2], -1.0, 1.0)))
-        if tilt > MAX_PALM_TILT:
-            reason = f"Posture Control tilts the palm {np.degrees(tilt):.0f} deg from vertical"
-            continue
-        qpos = seed.qpos.copy()
-        qpos[arm_adr] = sol.arm_q
-        qpos[hand_adr] = sol.hand_q
-        # the fingertips are on the contacts now: the nearest assignment is the one given
-        contacts, reach = reachable_contacts(world, prism, target, th, qpos=qpos, tries=1)
-        if not reach.reachable:
-            reason = reach.reason
-            continue
-        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
-        return Placement(True, "", qpos, yaw, tilt, seed, contacts, reach)
-    return Placement(False, reason)
+    pairs = ranked_starts(target, th, postures, prism.bottom)[:seeds]
+    found = search_seeds(
+        ReachQuery(world, None, prism, target),
+        th,
+        (SeedStart(f"yaw {np.degrees(p.yaw):.0f} deg", p.qpos, given) for p, given in pairs),
+        checker=checker,
+        axis=DOWN,
+        max_tilt=MAX_PALM_TILT,
+        touchable=world.scene.target + GEOM_SUFFIX,
+        confirm_tries=1,
+        check_spacing=True,
+        axis_name="vertical",
+    )
+    if not found.found:
+        return Placement(False, found.reason)
+    R = found.palm_rotation
+    yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    seed = pairs[found.start][0]
+    return Placement(True, "", found.qpos, yaw, found.tilt, seed, found.contacts, found.reach)

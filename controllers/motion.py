@@ -1,0 +1,271 @@
+"""The hand's motion primitives near the block (section 5.2: the moves between Coarse Reach,
+Posture Control and Grasp Object): retract the fingers, move arm and hand together, reposition
+the arm without sweeping a finger through the block, pre-shape the hand, and the straight
+approach of a new arm posture along the palm's axis (planned, then made).
+
+Every primitive moves the simulation through ``world`` (its step hook records and clocks each
+step) and takes what it needs explicitly: the world, the planning model (the world with the
+perceived block in place of the real one), the perceived block, and :class:`MotionParams`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.arm_path import execute_path, plan_arm_path
+from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
+from controllers.fine_reach import project_to_surface
+from controllers.grip import PRE_CONTACT, backed_off_hand, move_hand
+from controllers.hand_reach import FingerContacts
+from controllers.planning_model import PERCEIVED_GEOM
+from controllers.posture import SERVO_CORRECTIONS, solve_posture
+from controllers.reach import ReachTarget
+from controllers.timing import SERVO_SETTLE_TIME
+from controllers.transport import move_palm
+from hand_sim import robot
+from hand_sim.contacts import robot_contacts
+from hand_sim.world import World
+
+
+@dataclass(frozen=True)
+class MotionParams:
+    """Distances and times of the motion primitives."""
+
+    #: Fingers retract this far (m) from the block before the arm changes posture or the hand
+    #: pre-shapes for the grasp.
+    retract: float = 0.015
+    retract_tries: int = 3
+    #: Posture Control changes the arm's posture backed out by this much (m) along the approach
+    #: axis, each straight move out and in taking ``backoff_time`` (s): the fingers stay clear of
+    #: the block.
+    backoff: float = 0.08
+    backoff_time: float = 0.8
+    #: Clearance (m) of the harmonic path between the backed-out postures.
+    reposition_clearance: float = 0.0
+    #: Times (s) of the hand's moves.
+    retract_time: float = 0.4
+    preshape_time: float = 0.6
+    arm_move_time: float = 1.0
+    #: A lateral pre-shape moves the fingertips to their pre-contact positions along straight
+    #: lines in ``preshape_waypoints`` steps, each a hand IK with collision avoidance.
+    preshape_waypoints: int = 10
+    preshape_ik_iterations: int = 40
+    #: Fingertip distances (m) outside the contacts of the hand postures a new arm posture may be
+    #: approached with, tried in order (a block standing at an angle to the approach axis needs
+    #: the fingers wider open); at the posture the fingers then close to PRE_CONTACT.
+    approach_standoffs: tuple[float, ...] = (PRE_CONTACT, 0.02, 0.03)
+    #: The straight approach of a new posture (the last ``backoff`` of it) must keep the hand
+    #: this far (m) from the perceived block and everything else, checked every
+    #: ``approach_step`` (m).
+    approach_clearance: float = 0.003
+    approach_step: float = 0.01
+
+
+DEFAULT_MOTION = MotionParams()
+
+
+@dataclass(frozen=True, eq=False)
+class BlockSite:
+    """Where the hand works: the world, the planning model, the perceived block and the real
+    block's body (to feel the fingers on it), and the coarse reach's approach axis (world unit
+    vector: straight down for a top grasp, along the arm's radius for a lateral one).
+    ``lateral``: a lateral grasp (its pre-shape and repositioning differ)."""
+
+    world: World
+    planning: mujoco.MjModel
+    target: ReachTarget
+    block_body: int
+    axis: NDArray[np.float64]
+    lateral: bool = False
+    params: MotionParams = field(default_factory=MotionParams)
+
+
+@dataclass(frozen=True, eq=False)
+class ApproachPlan:
+    """A new arm posture and how the hand approaches it: ``wide`` while the palm moves in
+    along the approach axis, then ``hand_pre`` (the pre-contact posture) there."""
+
+    arm_q: NDArray[np.float64]
+    wide: NDArray[np.float64]
+    hand_pre: NDArray[np.float64]
+
+
+def retract(site: BlockSite) -> None:
+    """Move every fingertip ``retract`` straight out from the perceived block's nearest face,
+    and again, each time ``retract`` further (up to ``retract_tries`` times in all), while any
+    finger still touches the block: a finger left on it (a thumb's middle link pressed on a
+    face, say) would drag it, or wedge it against the palm and lift it, when the palm backs
+    away."""
+    world, p = site.world, site.params
+    for k in range(p.retract_tries):
+        tips = world.fingertip_positions()
+        out = project_to_surface(site.target, tips, table_z=world.scene.table.height)
+        sol = solve_posture(
+            world,
+            tips + (k + 1) * p.retract * out.normals,
+            optimize=False,
+            joints="hand",
+            model=site.planning,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+        )
+        move_hand(world, sol.hand_q, p.retract_time)
+        if not any(c.finger in robot.FINGERS for c in robot_contacts(world, site.block_body)):
+            return
+
+
+def move_arm_and_hand(
+    world: World, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64], duration: float
+) -> None:
+    """Move the arm's and the hand's servo targets together to ``arm_q`` and ``hand_q`` over
+    ``duration`` (s, cosine profile, 20 ms periods), then let them settle 0.3 s."""
+    a0, h0 = world.arm_targets(), world.hand_targets()
+    steps = max(1, round(0.02 / world.model.opt.timestep))
+    n = max(1, round(duration / 0.02))
+    for k in range(1, n + 1):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        world.set_arm_targets(a0 + s * (arm_q - a0))
+        world.set_hand_targets(h0 + s * (hand_q - h0))
+        world.step(steps)
+    world.step(round(0.3 / world.model.opt.timestep))
+
+
+def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64]) -> None:
+    """Take the arm and hand to a new posture near the block without sweeping a finger through
+    it: retract the fingers, back the palm out along the approach by ``backoff``, move the arm
+    to the new posture backed out likewise (on a harmonic path), shape the hand there, and
+    approach in a straight line."""
+    world, p = site.world, site.params
+    checker = CollisionChecker(world, model=site.planning)
+    retract(site)
+    # out and back in along the coarse reach's approach (straight up for a top grasp, along the
+    # arm's radius for a lateral one), whatever tilt Posture Control gave the palm: the fingers
+    # then slide along the block's faces, not into them
+    axis = site.axis
+    move_palm(world, checker, -p.backoff * axis, p.backoff_time)
+    p_new, R_new = checker.palm_pose(arm_q)
+    raised = checker.solve_ik(p_new - p.backoff * axis, R_new, arm_q)
+    if not raised.found:
+        raise ReachError("the new arm posture cannot be approached along the hand's axis")
+    # the arm moves on a collision-free harmonic path (the hand keeps its retracted shape)
+    mover = CollisionChecker(
+        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
+    )
+    path = plan_arm_path(mover, world.arm_qpos(), raised.q)
+    if path.found:
+        execute_path(world, path.path, settle=0.2)
+    else:  # e.g. the backed-out hand already grazes a neighbour: straight there, in joint space
+        move_arm_and_hand(world, raised.q, world.hand_targets(), p.arm_move_time)
+    move_hand(world, hand_q, p.preshape_time)  # then opens, clear of the block
+    move_palm(world, checker, p.backoff * axis, p.backoff_time)
+    if not site.lateral:
+        return
+    # lateral: the arm lags its targets and its servos sag under the hand's weight, which moves
+    # a horizontal finger row off its faces: let it settle and take out the steady-state error,
+    # as apply_posture does (a top grasp's fingers close from above and do not need it; it costs
+    # 1.5 s of simulated time)
+    settle = round(SERVO_SETTLE_TIME / world.model.opt.timestep)
+    world.step(settle)
+    for _ in range(SERVO_CORRECTIONS):
+        world.set_arm_targets(world.arm_targets() + arm_q - world.arm_qpos())
+        world.step(settle)
+
+
+def approach_clear(
+    site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64]
+) -> bool:
+    """Whether the palm's straight approach to ``arm_q`` along the approach axis over
+    ``backoff`` (as :func:`reposition` makes it), the hand held at ``hand_q``, stays
+    ``approach_clearance`` clear of the perceived world."""
+    p = site.params
+    checker = CollisionChecker(
+        site.world, model=site.planning, hand_q=hand_q, clearance=p.approach_clearance
+    )
+    palm, R = checker.palm_pose(arm_q)
+    q = np.asarray(arm_q, dtype=float)
+    if checker.collides(q):
+        return False
+    for back in np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step):
+        ik = checker.solve_ik(palm - back * site.axis, R, q)
+        if not ik.found or checker.collides(ik.q):
+            return False
+        q = ik.q
+    return True
+
+
+def approach_plan(
+    site: BlockSite, qpos: NDArray[np.float64], contacts: FingerContacts, squeeze_reach: float
+) -> ApproachPlan | None:
+    """The arm posture of ``qpos``, a hand posture whose straight approach to it along the
+    palm's axis clears the perceived block (:func:`approach_clear`; the fingertips
+    ``approach_standoffs`` outside their contacts) and the hand's pre-contact posture there
+    (PRE_CONTACT outside); None when no approach clears. ``qpos``'s hand takes ``contacts``
+    (``squeeze_reach`` inside); the fingers back off from it along their squeeze directions
+    (:func:`controllers.grip.backed_off_hand`)."""
+    arm_q = qpos[robot.arm_qpos_addresses(site.world.model)]
+
+    def hand_at(standoff: float) -> NDArray[np.float64]:
+        # back from the posture that takes the contacts, along the fingers' squeeze directions
+        # (a finger reaching round a corner cannot hold its pad facing a point further out)
+        return backed_off_hand(site.planning, qpos, contacts.normals, standoff + squeeze_reach)
+
+    hand_pre = hand_at(PRE_CONTACT)
+    for standoff in site.params.approach_standoffs:
+        wide = hand_pre if standoff == PRE_CONTACT else hand_at(standoff)
+        if approach_clear(site, arm_q, wide):
+            return ApproachPlan(arm_q, wide, hand_pre)
+    return None
+
+
+def approach(site: BlockSite, plan: ApproachPlan) -> None:
+    """:func:`reposition` with the hand at ``plan.wide``, then the fingers close to
+    ``plan.hand_pre``."""
+    reposition(site, plan.arm_q, plan.wide)
+    if not np.array_equal(plan.wide, plan.hand_pre):
+        move_hand(site.world, plan.hand_pre, site.params.preshape_time)
+
+
+def preshape(site: BlockSite, q_pre: NDArray[np.float64]) -> None:
+    """Pre-shape the hand to ``q_pre`` for closing. In a lateral grasp the middle finger and the
+    thumb reach round the block's near corners, and a straight line in joint space from where
+    the fingers retracted to cuts through a corner: there the fingertips and pad centres move
+    along straight lines to where ``q_pre`` puts them, through ``preshape_waypoints`` hand IK
+    solutions that keep every link clear of the perceived block (collision avoidance), and the
+    hand then settles on ``q_pre``."""
+    world, p = site.world, site.params
+    if site.lateral:
+        m = site.planning
+        tip_sites = [m.site(robot.qualified(s)).id for s in robot.FINGERTIP_SITES]
+        pad_sites = [m.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES]
+        hand_adr = robot.hand_qpos_addresses(m)
+        data = mujoco.MjData(m)
+        data.qpos[:] = world.data.qpos
+        data.qpos[hand_adr] = q_pre
+        mujoco.mj_kinematics(m, data)
+        tips1, pads1 = data.site_xpos[tip_sites].copy(), data.site_xpos[pad_sites].copy()
+        qpos = world.data.qpos.copy()
+        qpos[hand_adr] = world.hand_targets()
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(m, data)
+        tips0, pads0 = data.site_xpos[tip_sites].copy(), data.site_xpos[pad_sites].copy()
+        for k in range(1, p.preshape_waypoints + 1):
+            s = k / p.preshape_waypoints
+            sol = solve_posture(
+                world,
+                tips0 + s * (tips1 - tips0),
+                optimize=False,
+                joints="hand",
+                model=m,
+                avoid_collisions=True,
+                pad_centres=pads0 + s * (pads1 - pads0),
+                qpos=qpos,
+                reach_iterations=p.preshape_ik_iterations,
+            )
+            qpos[hand_adr] = sol.hand_q
+            move_hand(world, sol.hand_q, p.preshape_time / p.preshape_waypoints)
+    move_hand(world, q_pre, p.preshape_time)

@@ -1,0 +1,246 @@
+"""Candidate palm poses and IK seeds for Posture Control's search (section 5.2, Posture
+Control: the arm reconfigures so that the virtual contacts come within the fingers' reach).
+
+Each generator takes the world, the planning model and the perceived block explicitly and
+returns configurations to start from; :mod:`controllers.palm_pose` searches them:
+- :func:`lateral_poses`: palm poses beside the block (a lateral grasp), with a pinch pre-shape;
+- :func:`top_poses`: palm poses above the block, turned about it and shifted (a top grasp);
+- :func:`roll_seeds`: the present configuration with the wrist rolled in steps (a top grasp's
+  first search, the arm's own IK from each);
+- :func:`side_contacts`: the side-face contacts a lateral pinch closes on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.cspace import CollisionChecker
+from controllers.reach import LATERAL_DEPTH, ReachTarget
+from hand_sim import robot
+from hand_sim.world import World
+
+
+@dataclass(frozen=True)
+class PalmPoseParams:
+    """The palm poses Posture Control's search tries, and its limits."""
+
+    #: A lateral pinch of the hand (ff, mf, rf, th; abduction, MCP, PIP, DIP, rad):
+    #: ``benchmarks.hand_reachability``'s best lateral grasp of the rectangle (S_G 0.002; 3000
+    #: hand samples, seed 0): first and middle finger on one long face, ring finger and thumb on
+    #: the other.
+    lateral_pinch: tuple[float, ...] = (
+        -0.61, 1.56, 0.87, 0.14,
+        -0.69, 0.48, 1.53, 0.32,
+        0.64, 1.05, 1.31, 0.18,
+        -0.82, 0.55, 0.61, 1.15,
+    )  # fmt: skip
+    #: Lateral palm poses (:func:`lateral_poses`): the approach axis horizontal and radial, the
+    #: palm face ``lateral_gaps`` (m) from the perceived block's nearest point along it, at the
+    #: coarse reach's height (LATERAL_DEPTH below the top), ``lateral_shifts`` (m) aside and hand
+    #: y turned ``lateral_rolls`` (rad) from vertical about the approach axis (a roll moves the
+    #: middle finger and the thumb off the block's centre line, towards the faces they take).
+    lateral_gaps: tuple[float, ...] = (0.03, 0.035, 0.04)
+    lateral_rolls: tuple[float, ...] = tuple(np.deg2rad([0.0, 10.0, -10.0]))
+    lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
+    #: Side contacts stay this far (m) inside the block's extent along the approach axis.
+    side_inset: float = 0.004
+    #: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose
+    #: (the top grasp's search over :func:`top_poses` checks as many).
+    pose_tries: int = 2
+    #: A top grasp's palm poses (:func:`top_poses`): the hand turned about the vertical through
+    #: the perceived block's centroid by ``top_rolls`` (rad) from where it is, and moved
+    #: ``top_shift`` (m) along the world's x and y.
+    top_rolls: tuple[float, ...] = tuple(np.deg2rad(np.arange(0.0, 360.0, 30.0)))
+    top_shift: float = 0.008
+    #: Wrist-roll offsets (rad) Posture Control starts its search from, in order: the arm's own
+    #: differential IK finds the nearest posture, which may keep a finger on the wrong side.
+    roll_seeds: tuple[float, ...] = tuple(np.deg2rad([0, 45, -45, 90, -90, 180]))
+    #: Posture Control may tilt the palm's approach axis this far (rad) from the coarse reach's,
+    #: per approach: a hand tilted further grips a block standing on the table at an angle.
+    max_palm_tilt_top: float = float(np.deg2rad(12.0))
+    max_palm_tilt_lateral: float = float(np.deg2rad(35.0))
+
+    def max_palm_tilt(self, approach: str) -> float:
+        """The largest palm tilt (rad) for ``approach`` ("top" or "lateral")."""
+        return {"top": self.max_palm_tilt_top, "lateral": self.max_palm_tilt_lateral}[approach]
+
+
+DEFAULT_PALM_POSE = PalmPoseParams()
+
+
+@dataclass(frozen=True, eq=False)
+class PalmPose:
+    """A palm pose a Posture Control search tries (:func:`controllers.palm_pose.search_poses`):
+    the configuration (qpos), its group (poses are tried group by group, in order: a lateral
+    pose's palm-block distance in m, a top pose's 0 where the palm is and 1 shifted) and a
+    label."""
+
+    qpos: NDArray[np.float64]
+    group: float
+    label: str
+
+
+def robot_base_xy(world: World) -> tuple[float, float]:
+    """World (x, y) of the arm's base."""
+    body = world.model.body(robot.arm_name("arm_base")).id
+    x, y = world.data.xpos[body][:2]
+    return float(x), float(y)
+
+
+def turn_about_vertical(angle: float) -> NDArray[np.float64]:
+    """Rotation by ``angle`` (rad) about the vertical."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def lateral_poses(
+    world: World,
+    planning: mujoco.MjModel,
+    target: ReachTarget,
+    coarse_rotation: NDArray[np.float64],
+    params: PalmPoseParams = DEFAULT_PALM_POSE,
+) -> list[PalmPose]:
+    """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
+    has five joints), hand y up as the coarse reach put it (``coarse_rotation``, its goal palm
+    rotation), turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the
+    block's nearest point along the axis, at the coarse reach's height, ``lateral_shifts``
+    aside; in order of the gap. The hand takes the pinch pre-shape."""
+    m = world.model
+    hand_adr = robot.hand_qpos_addresses(m)
+    arm_adr = robot.arm_qpos_addresses(m)
+    checker = CollisionChecker(world, model=planning)
+    q_arm = world.data.qpos[arm_adr]
+    base = np.asarray(robot_base_xy(world))
+    centre = np.array([*target.position_xy, target.top_z - LATERAL_DEPTH])
+    axis = np.array([*(centre[:2] - base), 0.0])
+    axis /= np.linalg.norm(axis)
+    up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
+    near = float(((target.footprint() - centre[:2]) @ axis[:2]).min())
+    poses = []
+    for gap in params.lateral_gaps:
+        for roll in params.lateral_rolls:
+            for shift in params.lateral_shifts:
+                palm = centre + (near - gap) * axis + shift * np.cross(up, axis)
+                # the approach axis through the shifted palm is radial, as the arm has it
+                radial = np.array([*(palm[:2] - base), 0.0])
+                radial /= np.linalg.norm(radial)
+                y = np.cos(roll) * up + np.sin(roll) * np.cross(up, radial)
+                rot = np.column_stack([np.cross(y, radial), y, radial])
+                arm = checker.solve_ik(palm, rot, q_arm)
+                if not arm.found:
+                    continue
+                qpos = world.data.qpos.copy()
+                qpos[arm_adr] = arm.q
+                qpos[hand_adr] = np.asarray(params.lateral_pinch)
+                label = (
+                    f"palm {gap * 100:.1f} cm from the block, {shift * 100:+.1f} cm aside, "
+                    f"rolled {np.degrees(roll):+.0f} deg"
+                )
+                poses.append(PalmPose(qpos, gap, label))
+    return poses
+
+
+def top_poses(
+    world: World,
+    planning: mujoco.MjModel,
+    target: ReachTarget,
+    coarse_rotation: NDArray[np.float64],
+    params: PalmPoseParams = DEFAULT_PALM_POSE,
+) -> list[PalmPose]:
+    """Palm poses above the perceived block for a top grasp's Posture Control: the palm level
+    (the coarse reach's orientation, ``coarse_rotation``) at its present height, turned
+    ``top_rolls`` about the vertical through the block's centroid, first where it is (``group``
+    0), then ``top_shift`` aside (``group`` 1); the hand in its present shape."""
+    m = world.model
+    checker = CollisionChecker(world, model=planning)
+    arm_adr = robot.arm_qpos_addresses(m)
+    lo, hi = m.jnt_range[m.joint(robot.qualified("wrist_roll")).id]
+    q_arm = world.data.qpos[arm_adr]
+    p, _ = checker.palm_pose(q_arm)
+    centre = np.asarray(target.position_xy, dtype=float)
+    shifts = [(0, np.zeros(2))] + [
+        (1, params.top_shift * np.array(d)) for d in ((1, 0), (-1, 0), (0, 1), (0, -1))
+    ]
+    poses = []
+    for gap, shift in shifts:
+        for roll in params.top_rolls:
+            turn = turn_about_vertical(roll)
+            palm = p.copy()
+            palm[:2] = centre + turn[:2, :2] @ (p[:2] - centre) + shift
+            seed = q_arm.copy()
+            seed[-1] = np.mod(seed[-1] + roll - lo, 2 * np.pi) + lo
+            if seed[-1] > hi:
+                seed[-1] -= 2 * np.pi
+            arm = checker.solve_ik(palm, turn @ coarse_rotation, seed)
+            if not arm.found:
+                continue
+            qpos = world.data.qpos.copy()
+            qpos[arm_adr] = arm.q
+            label = f"palm turned {np.degrees(roll):+.0f} deg about the block" + (
+                f", moved {shift[0] * 1000:+.0f}, {shift[1] * 1000:+.0f} mm" if gap else ""
+            )
+            poses.append(PalmPose(qpos, float(gap), label))
+    return poses
+
+
+def roll_seeds(
+    world: World, params: PalmPoseParams = DEFAULT_PALM_POSE
+) -> list[tuple[str, NDArray[np.float64]]]:
+    """Start configurations of a top grasp's Posture Control search, with a label: the world's
+    configuration with the wrist rolled by each of ``roll_seeds`` (within its range; the arm's
+    differential IK finds the nearest posture, which may keep a finger on the wrong side of the
+    block)."""
+    m = world.model
+    roll_j = m.joint(robot.qualified("wrist_roll")).id
+    roll_adr = m.jnt_qposadr[roll_j]
+    lo, hi = m.jnt_range[roll_j]
+    seeds = []
+    for roll in params.roll_seeds:
+        seed = world.data.qpos.copy()
+        seed[roll_adr] = np.clip(seed[roll_adr] + roll, lo, hi)
+        seeds.append((f"wrist roll {np.degrees(roll):+.0f} deg", seed))
+    return seeds
+
+
+def side_contacts(
+    target: ReachTarget,
+    base_xy: tuple[float, float],
+    tips: NDArray[np.float64],
+    inset: float = DEFAULT_PALM_POSE.side_inset,
+) -> NDArray[np.float64]:
+    """Contact coordinates (polar angles on the perceived polygon) where lines from the
+    approach axis (from the arm's base at ``base_xy`` through the block's centre) across it,
+    through each fingertip of ``tips`` (4, 3), meet the block's outline on the fingertip's
+    side: the side faces a lateral pinch closes on. (The nearest surface point of a fingertip in
+    front of the block's near corner is on the near face, where the palm pushes against
+    nothing.) A fingertip before or beyond the block along the axis takes the block's first or
+    last ``inset`` (m)."""
+    centre = np.asarray(target.position_xy)
+    axis = centre - np.asarray(base_xy)
+    axis /= np.linalg.norm(axis)
+    across = np.array([-axis[1], axis[0]])
+    foot = target.footprint()
+    depth = (foot - centre) @ axis
+    lo, hi = depth.min() + inset, depth.max() - inset
+    edges = np.roll(foot, -1, axis=0) - foot
+    theta = np.empty(len(tips))
+    for f, tip in enumerate(tips[:, :2]):
+        d = float(np.clip((tip - centre) @ axis, lo, hi))
+        side = 1.0 if (tip - centre) @ across >= 0.0 else -1.0
+        origin, ray = centre + d * axis, side * across
+        # the ray leaves the convex outline through exactly one edge
+        best = np.inf
+        for a, e in zip(foot, edges, strict=True):
+            mat = np.column_stack([ray, -e])
+            if abs(np.linalg.det(mat)) < 1e-12:
+                continue
+            t, u = np.linalg.solve(mat, a - origin)
+            if t > 0.0 and -1e-9 <= u <= 1.0 + 1e-9:
+                best = min(best, t)
+        local = origin + best * ray - centre
+        theta[f] = np.arctan2(local[1], local[0]) - target.yaw
+    return np.mod(theta + np.pi, 2 * np.pi) - np.pi

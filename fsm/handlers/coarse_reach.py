@@ -1,0 +1,33 @@
+"""Coarse Reach (section 5.2): the arm moves on a harmonic path in its c-space to above (top)
+or beside (lateral) the perceived block."""
+
+from __future__ import annotations
+
+from controllers.arm_path import execute_path
+from controllers.reach import APPROACHES, plan_coarse_reach
+from fsm.context import Episode
+from fsm.handlers.common import lateral_preshape
+from fsm.states import Failure, State, Step, TaskFailedError
+
+
+def coarse_reach(ep: Episode) -> Step:
+    """Coarse Reach: a harmonic path in the arm's c-space to above (top) or beside (lateral)
+    the perceived block; the path determines the approach unless one is forced. A lateral
+    approach then takes the pinch pre-shape at a palm pose beside the block."""
+    approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
+    plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
+    if not plan.found:
+        raise TaskFailedError(Failure.NO_COARSE_PATH, plan.reason)
+    ep.coarse = plan
+    ep.record.approach = plan.approach
+    run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
+    touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
+    lengths = ", ".join(f"{a} {p.length:.2f} rad" for a, p in plan.candidates.items() if p.found)
+    preshape = ""
+    if plan.approach == "lateral":
+        done = lateral_preshape(ep)
+        preshape = "; " + (done or "no pinch pre-shape (none is approached without collision)")
+    return Step(
+        State.FINE_REACH,
+        f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way{preshape}",
+    )

@@ -1,0 +1,120 @@
+"""What several state handlers share: the episode's view of the controllers' explicit inputs
+(the motion primitives' :class:`~controllers.motion.BlockSite`, the palm-pose search's
+:class:`~controllers.palm_pose.ReachQuery`), whether this cycle's grasp is lateral, and the
+lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.finger_geometry import fingertips_at
+from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
+from controllers.grasp.session import separate_contacts
+from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
+from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
+from controllers.palm_candidates import PalmPose, lateral_poses, robot_base_xy, side_contacts
+from controllers.palm_pose import ReachQuery, search_poses
+from fsm.context import Episode
+from hand_sim import robot
+from hand_sim.geometry import place_polygon
+
+
+def slides(ep: Episode) -> bool:
+    """Whether the contacts may slide up and down their faces: in a lateral grasp the finger row
+    is horizontal and the thumb below it, so the hand's shape, not a depth below the top, sets
+    each finger's height on the block (a top grasp keeps its fingers at the depth they
+    reached)."""
+    return ep.coarse is not None and ep.coarse.approach == "lateral"
+
+
+def finger_samples(ep: Episode) -> FingerSamples:
+    """Sampled finger postures, IK starts for a palm-pose search (drawn once an episode)."""
+    if ep.finger_samples is None:
+        ep.finger_samples = FingerSamples.draw(pad_normal_local=PAD_NORMAL_LOCAL)
+    return ep.finger_samples
+
+
+def squeeze_reach(ep: Episode) -> float:
+    """How far past its contact each fingertip must reach in this cycle's grasp."""
+    return ep.config.lateral_squeeze_reach if slides(ep) else SQUEEZE_REACH
+
+
+def block_site(ep: Episode) -> BlockSite:
+    """The motion primitives' inputs for this cycle's block: the approach axis is the coarse
+    reach's (straight down for a top grasp, along the arm's radius for a lateral one)."""
+    return BlockSite(
+        ep.world,
+        ep.planning,
+        ep.target,
+        ep.world.block_body_id(ep.target_name),
+        ep.coarse.goal.palm_rotation[:, 2],
+        lateral=slides(ep),
+        params=ep.config.motion,
+    )
+
+
+def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
+    """The reach test's inputs for this cycle's block; ``sampled``: the hand IK starts from the
+    episode's sampled finger postures (always in a palm-pose search; in Wrench Closure's checks
+    only for a lateral grasp)."""
+    lateral = slides(ep)
+    return ReachQuery(
+        ep.world,
+        ep.planning,
+        ep.prism,
+        ep.target,
+        slide=lateral,
+        samples=finger_samples(ep) if sampled or lateral else None,
+        squeeze=squeeze_reach(ep),
+    )
+
+
+def plan_approach(
+    ep: Episode, qpos: NDArray[np.float64], contacts: FingerContacts
+) -> ApproachPlan | None:
+    """:func:`controllers.motion.approach_plan` for this cycle's block and grasp."""
+    return approach_plan(block_site(ep), qpos, contacts, squeeze_reach(ep))
+
+
+def contact_points(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """World points (n, 3) of contacts ``theta`` on the perceived polygon, at the top's height
+    less 3 cm (for drawing)."""
+    frames = ep.target.polygon.locate(theta)
+    xy = place_polygon(frames.point, ep.target.position_xy, ep.target.yaw)
+    return np.column_stack([xy, np.full(len(xy), ep.target.top_z - 0.03)])
+
+
+def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
+    """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
+    the surface points nearest the fingertips of the pinch pre-shape there (kept a pad spacing
+    apart; :func:`controllers.palm_pose.search_poses` over
+    :func:`controllers.palm_candidates.lateral_poses`); the hand pre-shapes outside those points
+    and the palm moves there along its approach axis (``skip``: the next pose). Returns what was
+    done, for the log, or None when no pose is approached without collision."""
+    base = robot_base_xy(ep.world)
+    params = ep.config.palm_pose
+
+    def pinch_contacts(pose: PalmPose) -> NDArray[np.float64]:
+        tips = fingertips_at(ep.planning, pose.qpos)
+        return separate_contacts(
+            ep.target.polygon,
+            side_contacts(ep.target, base, tips, params.side_inset),
+            CONTACT_SEPARATION,
+            robot.PAD_RADIUS,
+        )
+
+    poses = lateral_poses(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation, params)
+    found = search_poses(
+        reach_query(ep, sampled=True),
+        poses,
+        pinch_contacts,
+        lambda qpos, contacts: plan_approach(ep, qpos, contacts),
+        tries=params.pose_tries,
+        reachable_only=False,
+        skip=skip,
+    )
+    if not found.found:
+        return None
+    approach(block_site(ep), found.approach)
+    return f"pinch pre-shape, {found.label} (reach load {found.load:.2f})"

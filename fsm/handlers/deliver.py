@@ -1,0 +1,154 @@
+"""Deliver (section 5.2): lift the grasped block, carry it to the place point, set it down,
+release and retreat; the placement is then judged physically (:mod:`fsm.judge`)."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from controllers.cspace import CollisionChecker
+from controllers.delivery import plan_delivery
+from controllers.grip import CONTROL_PERIOD, release
+from controllers.palm_candidates import robot_base_xy
+from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
+from fsm.context import Episode
+from fsm.handlers.common import slides
+from fsm.judge import judge
+from fsm.layout import free_slot
+from fsm.states import Failure, State, Step, TaskFailedError
+
+
+class _DroppedError(Exception):
+    """Fewer than two pads have felt the carried block for ``drop_window`` periods."""
+
+
+def deliver(ep: Episode) -> Step:
+    """Deliver: lift, carry along a harmonic path planned with the block in the hand, lower
+    until the table takes the weight (wrist sensor), release along the contact normals, retreat;
+    then judge the placement physically. A later cycle's place slot the hand cannot set the
+    block down at gives way to the next free one (up to ``config.max_place_slots``)."""
+    world = ep.world
+    name = ep.target_name
+    record = ep.record
+    config = ep.config
+    checker = CollisionChecker(world)
+    table_z = world.scene.table.height
+    half = 0.5 * world.scene.block(name).height  # to measure clearance (judging only)
+    log = ep.recorder.log_transition
+
+    def clearance_now(w) -> float:
+        return float(w.block_pose(name)[0][2] - half - table_z)
+
+    lifted = lift(world, checker, name, ep.grip)
+    record.lift_height = float(lifted.block_rise)
+    record.lift_slip = float(lifted.slip)
+    record.lift_clearance = max(record.lift_clearance, clearance_now(world))
+    load = held_load(world, ep.empty_hand_force)
+    lost = world.touch() <= 0.0
+    if slides(ep):
+        # a balanced lateral squeeze holds with two opposed pads; the others only touch lightly
+        # (balanced_shares) and may let go as the block settles in the grip
+        lost &= ep.grip.forces >= config.carrying_share * ep.grip.forces.mean()
+    if load < config.min_held_share * ep.expected_load or lost.sum() > 1:
+        raise TaskFailedError(
+            Failure.SLIPPED_DURING_LIFT,
+            f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
+            f"touch {np.round(world.touch(), 2).tolist()} N",
+        )
+    log(
+        State.DELIVER.value,
+        State.DELIVER.value,
+        f"lifted: block rose {lifted.block_rise * 100:.1f} cm",
+    )
+    plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+    tried = [np.asarray(ep.place, dtype=float)]
+    # a place the user did not ask for (a later cycle's slot, or the scene's place point) may be
+    # free for the block but not for the hand around it: take the next free slot
+    chosen = ep.cycle > 0 or (ep.options.place is None and ep.options.place_pixel is None)
+    while not plan.found and chosen and len(tried) < config.max_place_slots:
+        taken = [t + 0.001 * np.array([[1.0, 0.0], [-0.5, 0.87], [-0.5, -0.87]]) for t in tried]
+        slot = free_slot(
+            tried[0],
+            ep.place_radius,
+            [*ep.place_footprints, *taken],
+            world.scene.table,
+            (robot_base_xy(world), *config.place_reach),
+        )
+        if slot is None:
+            break
+        log(
+            State.DELIVER.value,
+            State.DELIVER.value,
+            f"place slot {tried[-1].round(3).tolist()}: {plan.reason}; trying "
+            f"{slot.round(3).tolist()}",
+        )
+        ep.place = slot
+        record.place = (float(slot[0]), float(slot[1]))
+        tried.append(slot)
+        plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+    if not plan.found:
+        raise TaskFailedError(Failure.PLACE_UNREACHABLE, plan.reason)
+
+    lost: deque[bool] = deque(maxlen=config.drop_window)
+
+    def watch(w) -> None:
+        """Sensed, not judged: the pads (the wrist is weighed at rest, after the carry)."""
+        record.lift_clearance = max(record.lift_clearance, clearance_now(w))
+        lost.append(int((w.touch() > 0.0).sum()) < 2)
+        if len(lost) == config.drop_window and all(lost):
+            raise _DroppedError
+
+    try:
+        carry(world, plan.path, ep.grip, on_period=watch)
+    except _DroppedError as e:
+        raise TaskFailedError(
+            Failure.DROPPED_IN_TRANSPORT,
+            f"fewer than two pads have felt the block since t = "
+            f"{world.time - config.drop_window * CONTROL_PERIOD:.2f} s",
+        ) from e
+    world.step(round(config.weigh_time / world.model.opt.timestep))
+    load = held_load(world, ep.empty_hand_force)
+    if load < config.min_held_share * ep.expected_load:
+        raise TaskFailedError(
+            Failure.DROPPED_IN_TRANSPORT,
+            f"after the carry the hand holds {load:.2f} N of an expected "
+            f"{ep.expected_load:.2f} N (wrist sensor, at rest)",
+        )
+    log(State.DELIVER.value, State.DELIVER.value, "carried to the place point; lowering")
+    down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
+    if not down.supported:
+        raise TaskFailedError(
+            Failure.SET_DOWN_NOT_SENSED,
+            f"lowered {down.lowered * 100:.1f} cm; the hand still holds {down.load_after:.2f} N",
+        )
+    release(world, ep.grip)
+    retreat(world, checker)
+    world.step(round(0.5 / world.model.opt.timestep))
+    verdict = judge(world, name, ep.place, record.lift_clearance, ep.others_before)
+    record.judgement = {
+        "place_error_mm": verdict.place_error_mm,
+        "tilt_deg": verdict.tilt_deg,
+        "speed_m_s": verdict.speed,
+        "spin_rad_s": verdict.spin,
+        "lift_clearance_m": verdict.lift_clearance,
+        "finger_contact": verdict.finger_contact,
+        "palm_distance_m": verdict.palm_distance,
+        "other_blocks_moved_m": verdict.other_motion,
+        "final_position": verdict.final_position.round(5).tolist(),
+        "final_quat_wxyz": verdict.final_quat.round(5).tolist(),
+        "reasons": list(verdict.reasons),
+    }
+    if not verdict.success:
+        raise TaskFailedError(Failure.NOT_PLACED, "; ".join(verdict.reasons))
+    record.success = True
+    ep.delivered.append(name)
+    summary = (
+        f"{name} placed {verdict.place_error_mm:.1f} mm from the place point, "
+        f"tilt {verdict.tilt_deg:.1f} deg"
+    )
+    cycles = ep.options.cycles
+    if cycles is None or len(ep.cycles) < cycles:
+        ep.cycle += 1
+        return Step(State.SELECT_MODEL, summary + "; next block")
+    return Step(State.DONE, summary)

@@ -1,0 +1,60 @@
+"""Fine Reach (section 5.2): harmonic fields bring each fingertip near its projection on the
+perceived block's surface."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.fine_reach import GRASP_DEPTH, SurfaceTargets, contact_targets, fine_reach
+from controllers.grasp.session import separate_contacts
+from controllers.hand_reach import CONTACT_SEPARATION
+from controllers.planning_model import PERCEIVED_GEOM
+from fsm.context import Episode
+from fsm.states import Failure, State, Step, TaskFailedError
+from hand_sim import robot
+
+
+def fine_reach_state(ep: Episode) -> Step:
+    """Fine Reach: harmonic fields bring each fingertip near its projection on the perceived
+    block's surface (a touch guard stops a finger that arrives early)."""
+    world = ep.world
+    config = ep.config
+    # each fingertip's contact coordinate (its polar angle about the perceived centroid,
+    # Appendix B), the contacts kept a pad spacing apart: three fingers projected onto one small
+    # face would crowd each other
+    tips = world.fingertip_positions()
+    local = tips[:, :2] - np.asarray(ep.target.position_xy)
+    theta = np.arctan2(local[:, 1], local[:, 0]) - ep.target.yaw
+    theta = separate_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS)
+    spread = contact_targets(ep.target, theta)
+    z = np.clip(tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH)
+    targets = SurfaceTargets(
+        np.column_stack([spread.points[:, :2], z]), spread.normals, spread.theta
+    )
+    result = fine_reach(
+        world,
+        ep.target_name,
+        targets,
+        seen=ep.target,
+        tolerance=config.fine_reach_tolerance,
+        standoff=config.fine_reach_standoff,
+        model=ep.planning,
+        touchable=PERCEIVED_GEOM,
+    )
+    worst = float(result.tip_error.max())
+    if not result.reached and worst > config.fine_reach_give_up:
+        finger = robot.FINGERS[int(np.argmax(result.tip_error))]
+        raise TaskFailedError(
+            Failure.FINGERS_CANNOT_REACH,
+            f"{finger} stayed {worst * 1000:.0f} mm from its surface point",
+        )
+    ep.posture_mode = "hold"
+    return Step(
+        State.POSTURE_CONTROL,
+        f"fingertips {np.round(result.tip_error * 1000, 1).tolist()} mm from their targets"
+        + (
+            f", stopped on touch: {', '.join(result.stopped_on_touch)}"
+            if result.stopped_on_touch
+            else ""
+        ),
+    )

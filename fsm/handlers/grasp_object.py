@@ -1,0 +1,82 @@
+"""Grasp Object (section 5.2): the fingers close from their approach posture onto the
+synthesized contacts and squeeze to the grip force."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.grasp.score import grasp_score
+from controllers.grip import GRIP_FORCE, balanced_shares, close, move_hand, plan_grip, squeeze
+from controllers.motion import preshape, retract
+from fsm.context import Episode
+from fsm.handlers.common import block_site, slides, squeeze_reach
+from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.states import Failure, State, Step
+from hand_sim import robot
+
+
+def grasp_object(ep: Episode) -> Step:
+    """Grasp Object: the fingers go from their approach posture to the synthesized contacts,
+    each stopping when its pad feels the block, then squeeze to the grip force; a finger that
+    misses, or a squeeze that does not reach the force, opens the hand for a regrasp."""
+    world = ep.world
+    contacts = ep.contacts
+    lateral = slides(ep)
+    site = block_site(ep)
+    open_time = ep.config.motion.preshape_time
+    unit = ep.target.polygon.unit_moment()
+    frames = unit.locate(contacts.theta)
+    shares = grasp_score(frames.point, frames.normal).normal_forces
+    grip_force = GRIP_FORCE
+    if lateral:
+        # the fingers' heights differ (the middle finger high, the thumb low): squeeze without
+        # tipping the block, no finger harder than GRIP_FORCE
+        shares = balanced_shares(contacts.points, contacts.normals, shares)
+        grip_force = GRIP_FORCE * float(shares.mean() / shares.max())
+    retract(site)
+    world.step(round(0.2 / world.model.opt.timestep))
+    ep.empty_hand_force = world.wrist_wrench()[0]
+    ep.grip = plan_grip(
+        world,
+        contacts.points,
+        contacts.normals,
+        shares,
+        grip_force=grip_force,
+        model=ep.planning,
+        prism=ep.prism,
+        along_normal=lateral,
+        # lateral: from the posture the reachability check found (a local IK from the retracted
+        # hand may turn a pad that reaches round a corner onto its side)
+        start=ep.reach.hand_q if lateral else None,
+        squeeze_reach=squeeze_reach(ep),
+    )
+    preshape(site, ep.grip.q_pre)
+    closing = close(world, ep.grip)
+    if not closing.all_touched:
+        missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
+        # open to the approach posture and regrasp (the fingers that touched only stopped there)
+        move_hand(world, ep.grip.q_pre, open_time)
+        return regrasp_or_fail(
+            ep, f"{', '.join(missing)} did not touch the block", Failure.FINGERS_CANNOT_REACH
+        )
+    result = squeeze(world, ep.grip)
+    ep.record.grip_forces = result.touch.round(3).tolist()
+    ep.record.grip_target = result.target.round(3).tolist()
+    if not result.settled:
+        weak = [
+            f"{f} {t:.1f} N"
+            for f, t, g in zip(robot.FINGERS, result.touch, result.target, strict=True)
+            if t < 0.5 * g
+        ]
+        move_hand(world, ep.grip.q_pre, open_time)  # open, and regrasp
+        return regrasp_or_fail(
+            ep,
+            f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
+            f"{result.target.mean():.1f} N)",
+            Failure.FINGERS_CANNOT_REACH,
+        )
+    return Step(
+        State.DELIVER,
+        f"all four pads touch; squeezed to {np.round(result.touch, 1).tolist()} N "
+        f"(mean target {result.target.mean():.1f} N)",
+    )

@@ -1,0 +1,134 @@
+"""Posture Control (section 5.2; Grupen & Souccar, ref. [16]): the arm and hand reconfigure to
+maximise the hand's manipulability holding the fingertips (after Fine Reach), or to bring the
+virtual contacts within the fingers' reach (from Wrench Closure) by the palm-pose search."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from controllers.cspace import CollisionChecker
+from controllers.grip import PRE_CONTACT
+from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, reachable_contacts
+from controllers.motion import approach, reposition
+from controllers.palm_candidates import PalmPose, lateral_poses, roll_seeds, top_poses
+from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds
+from controllers.planning_model import PERCEIVED_GEOM
+from controllers.posture import apply_posture, solve_posture
+from fsm.context import Episode
+from fsm.handlers.common import block_site, plan_approach, reach_query, slides
+from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, State, Step
+
+
+def posture_control(ep: Episode) -> Step:
+    """Posture Control (Grupen & Souccar, ref. [16]): the arm and hand reconfigure to maximise
+    the hand's manipulability, holding the fingertips (after Fine Reach) or bringing the current
+    virtual contacts within the fingers' reach (from Wrench Closure), never touching anything
+    but the block's surface with the pads (collision avoidance in the perceived world)."""
+    world = ep.world
+    if ep.posture_mode == "hold":
+        sol = solve_posture(
+            world,
+            model=ep.planning,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+        )
+        before = world.fingertip_positions()
+        if sol.reachable:
+            apply_posture(world, sol)
+        drift = float(np.linalg.norm(world.fingertip_positions() - before, axis=1).max())
+        gain = sol.log_manipulability_end - sol.log_manipulability_start
+        if drift > ep.config.posture_drift and ep.record.fine_reach_loops < MAX_FINE_REACH_LOOPS:
+            ep.record.fine_reach_loops += 1
+            return Step(State.FINE_REACH, f"fingertips drifted {drift * 1000:.1f} mm")
+        return Step(
+            State.WRENCH_CLOSURE,
+            f"manipulability log M +{gain:.2f}, tips held within {drift * 1000:.1f} mm",
+        )
+    # contacts mode: make the virtual contacts reachable, trying the wrist roll in steps
+    if ep.record.posture_retries > MAX_POSTURE_RETRIES:
+        return regrasp_or_fail(ep)
+    found = reachable_posture(ep)
+    if not found.found:
+        if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
+            return regrasp_or_fail(ep)
+        return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
+    ep.contacts = found.contacts
+    plan = found.approach
+    if plan is None and slides(ep):
+        plan = plan_approach(ep, found.qpos, found.contacts)
+    if plan is not None:
+        approach(block_site(ep), plan)
+    else:
+        pre, pre_pads = grip_targets(found.contacts.points, found.contacts.normals, -PRE_CONTACT)
+        hand_pre = solve_posture(
+            world,
+            pre,
+            optimize=False,
+            joints="hand",
+            model=ep.planning,
+            pad_centres=pre_pads,
+            qpos=found.qpos,
+        ).hand_q
+        reposition(block_site(ep), found.arm_q, hand_pre)
+    return Step(
+        State.WRENCH_CLOSURE,
+        f"arm reconfigured (search from {found.label}) so that the contacts are within reach",
+    )
+
+
+def reachable_posture(ep: Episode) -> PalmPoseResult:
+    """An arm and hand configuration from which the current contacts are reachable, with the
+    contacts given to the fingers, the search's label and the approach plan (None when the
+    arm's own IK found the posture). A top grasp first follows the arm's IK from wrist-roll
+    seeds (:func:`controllers.palm_pose.search_seeds`), then, when that finds nothing, searches
+    :func:`controllers.palm_candidates.top_poses` with sampled finger postures as IK starts; a
+    lateral grasp searches :func:`controllers.palm_candidates.lateral_poses`. Over random scenes
+    0-29 (3-5 blocks, pi) the palm-pose search took the episodes delivered from 25 to 26."""
+    params = ep.config.palm_pose
+    rotation = ep.coarse.goal.palm_rotation
+    if slides(ep):
+        return _posture_among(ep, lateral_poses(ep.world, ep.planning, ep.target, rotation, params))
+    query = reach_query(ep)
+    theta = ep.synthesis.theta
+
+    def starts() -> Iterator[SeedStart]:
+        # the contacts the nearest assignment gives the fingers at each seed
+        for label, seed in roll_seeds(ep.world, params):
+            contacts, _ = reachable_contacts(
+                ep.world, ep.prism, ep.target, theta, model=ep.planning, qpos=seed, tries=1
+            )
+            yield SeedStart(label, seed, contacts)
+
+    found = search_seeds(
+        query,
+        theta,
+        starts(),
+        checker=CollisionChecker(ep.world, model=ep.planning),
+        axis=rotation[:, 2],
+        max_tilt=params.max_palm_tilt(ep.coarse.approach),
+        touchable=PERCEIVED_GEOM,
+        confirm_tries=ASSIGNMENTS_TRIED,
+        check_spacing=False,
+    )
+    if found.found:
+        return found
+    # the arm's differential IK from the roll seeds found nothing: search palm poses above the
+    # block, the fingers' IK starting from sampled postures (as a lateral grasp does)
+    return _posture_among(ep, top_poses(ep.world, ep.planning, ep.target, rotation, params))
+
+
+def _posture_among(ep: Episode, poses: list[PalmPose]) -> PalmPoseResult:
+    """A palm pose of ``poses`` from which the hand reaches the current contacts and that it
+    approaches without collision (:func:`controllers.palm_pose.search_poses`)."""
+    theta = ep.synthesis.theta
+    return search_poses(
+        reach_query(ep, sampled=True),
+        poses,
+        lambda pose: theta,
+        lambda qpos, contacts: plan_approach(ep, qpos, contacts),
+        tries=ep.config.palm_pose.pose_tries,
+        reachable_only=True,
+    )

@@ -1,0 +1,86 @@
+"""Select/Model (section 5.2): the picked block's polygon, centroid and yaw from the overhead
+image, its planning model, and the cycle's place point."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.finger_geometry import PerceivedPrism
+from controllers.planning_model import planning_model
+from controllers.reach import ReachTarget
+from fsm.context import Episode
+from fsm.perception import choose_block, other_footprints, perceive, place_for_cycle
+from fsm.states import Failure, State, Step, TaskFailedError
+from hand_sim.blocks import WOOD_DENSITY
+from hand_sim.robot import STANDARD_GRAVITY
+from vision import VisionError
+from vision.errors import NotABlockError
+
+
+def select_model(ep: Episode) -> Step:
+    """Select/Model: the picked block's polygon, centroid and yaw from the overhead image."""
+    record = ep.new_cycle()
+    world = ep.world
+    ep.selection = perceive(world)
+    try:
+        index = choose_block(world, ep.selection, ep.options, ep.cycle, ep.delivered)
+    except LookupError:
+        return Step(State.DONE, "no block left to pick")
+    except NotABlockError as e:
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+    except VisionError as e:
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
+    try:
+        model = ep.selection.model(index)
+    except VisionError as e:
+        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, str(e)) from e
+    name = ep.selection.names[index]
+    if name is None:
+        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
+    record.block = name
+    ep.model = model
+    table_z = world.scene.table.height
+    ep.target = ReachTarget.from_object_model(model)
+    ep.prism = PerceivedPrism.of(ep.target, table_z)
+    ep.planning = planning_model(
+        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
+    )
+    ep.expected_load = model.polygon.area * model.height * WOOD_DENSITY * STANDARD_GRAVITY
+    record.polygon = model.polygon.vertices.round(5).tolist()
+    truth = world.scene.block(name)
+    true_pos = world.block_pose(name)[0]
+    record.polygon_error = {
+        "centroid_mm": float(np.linalg.norm(model.centroid[:2] - true_pos[:2]) * 1000),
+        "area_percent": float(
+            abs(model.polygon.area - truth.polygon.area) / truth.polygon.area * 100
+        ),
+        "edges": float(model.n_edges),
+        "true_edges": float(truth.polygon.n_edges),
+    }
+    # the place point must be clear of every other perceived block
+    footprints = other_footprints(world, ep.selection, index, model.world_vertices)
+    radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
+    ep.place = place_for_cycle(
+        world, ep.options, ep.cycle, footprints, radius, ep.config.place_reach
+    )
+    ep.place_footprints, ep.place_radius = footprints, radius
+    record.place = (float(ep.place[0]), float(ep.place[1]))
+    ep.others_before = {
+        b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
+    }
+    ep.recorder.set_target(name)
+    ep.recorder.log_vision(
+        ep.selection.observation.rgb,
+        ep.selection.observation.geometry.K,
+        ep.selection.observation.geometry.cam_to_world,
+        model.world_vertices,
+        model.pixel_contour,
+        float(model.centroid[2]),
+    )
+    return Step(
+        State.COARSE_REACH,
+        f"picked {name}: {model.n_edges} edges, centroid "
+        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
+        f"yaw {np.degrees(model.yaw):.0f} deg; "
+        f"place at ({ep.place[0]:.3f}, {ep.place[1]:.3f})",
+    )

@@ -1,0 +1,112 @@
+"""Select/Model's perception bookkeeping (section 5.2, Select/Model): the overhead view
+segmented into blocks, which block a cycle picks, the other blocks' footprints, and the place
+point of the cycle."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.palm_candidates import robot_base_xy
+from fsm.context import EpisodeOptions
+from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
+from fsm.states import Failure, TaskFailedError
+from hand_sim.geometry import point_in_convex_polygon
+from hand_sim.world import World
+from vision import Observation, Selection, VisionError, analyze, overhead_camera
+
+
+def perceive(world: World) -> Selection:
+    """Render the overhead view and segment it (the scene names label the regions, as a
+    simulator's object labels would; the shapes and poses come from the image)."""
+    with overhead_camera(world) as cam:
+        obs = Observation.capture(cam)
+    names = {b.name: world.block_pose(b.name)[0][:2] for b in world.scene.blocks}
+    return analyze(obs, names)
+
+
+def on_table(world: World, selection: Selection, index: int) -> bool:
+    """Whether block ``index`` of ``selection`` has its centre over the table."""
+    centre = selection.block_centres()[index][:2]
+    return bool(world.scene.table.contains(centre[None], margin=0.0))
+
+
+def choose_block(
+    world: World,
+    selection: Selection,
+    options: EpisodeOptions,
+    cycle: int,
+    delivered: list[str],
+) -> int:
+    """Index (in ``selection``) of the block cycle ``cycle`` picks: the first cycle's as
+    ``options`` ask (a pixel, a name, or the scene's target); later cycles the remaining block on
+    the table (not in ``delivered``) nearest the arm's base. Raises LookupError when none is
+    left."""
+    sel = selection
+    if cycle == 0 and options.pick_pixel is not None:
+        return sel.index_at_pixel(options.pick_pixel)
+    if cycle == 0:
+        return sel.index_of_name(options.pick or world.scene.target)
+    # later cycles: the remaining block nearest the place point is cleared first
+    remaining = [
+        i
+        for i, name in enumerate(sel.names)
+        if name is not None and name not in delivered and on_table(world, sel, i)
+    ]
+    if not remaining:
+        raise LookupError("no block left")
+    centres = sel.block_centres()[:, :2]
+    base = np.asarray(robot_base_xy(world))
+    return min(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
+
+
+def place_for_cycle(
+    world: World,
+    options: EpisodeOptions,
+    cycle: int,
+    footprints: list[NDArray[np.float64]],
+    radius: float,
+    place_reach: tuple[float, float],
+) -> NDArray[np.float64]:
+    """This cycle's place point for a block of circumradius ``radius`` (m): the asked one first
+    (it must be clear of the other blocks' ``footprints``), then free slots near it within
+    ``place_reach`` (m) of the arm's base. Raises :class:`TaskFailedError` when there is none."""
+    scene = world.scene
+    first = np.asarray(options.place if options.place is not None else scene.place)
+    if cycle == 0:
+        if not place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
+            raise TaskFailedError(
+                Failure.PLACE_UNREACHABLE,
+                f"place point {first.round(3).tolist()} is occupied by another block",
+            )
+        return first
+    reach = (robot_base_xy(world), *place_reach)
+    slot = free_slot(first, radius, footprints, scene.table, reach)
+    if slot is None:
+        raise TaskFailedError(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
+    return slot
+
+
+def other_footprints(
+    world: World, selection: Selection, index: int, picked: NDArray[np.float64]
+) -> list[NDArray[np.float64]]:
+    """World footprints of the blocks of ``selection`` on the table other than ``index`` (whose
+    perceived world vertices are ``picked``), as perceived (a block whose polygon cannot be
+    extracted counts by its convex region of pixels on the table plane)."""
+    out = []
+    g = selection.observation.geometry
+    centres = selection.block_centres()[:, :2]
+    for i, region in enumerate(selection.blocks):
+        if i == index or not on_table(world, selection, i):
+            continue
+        if point_in_convex_polygon(centres[i], picked):
+            continue  # a fragment of the picked block's own view
+        try:
+            out.append(selection.model(i).world_vertices)
+        except VisionError:
+            v, u = np.nonzero(region.top_mask)
+            pixels = np.column_stack([u, v]).astype(np.float32)
+            hull = cv2.convexHull(pixels).reshape(-1, 2)
+            out.append(np.array([g.pixel_to_plane(p, region.z_top)[:2] for p in hull]))
+    return out
