@@ -217,6 +217,7 @@ def test_console_script_is_the_python_m_form(install: Install, script: str) -> N
     assert r.stdout.startswith(f"usage: {SCRIPTS[script]}"), r.stdout[:200]
 
 
+@pytest.mark.e2e
 def test_installed_task_cycle_runs_clutter3_from_an_empty_folder(install: Install) -> None:
     run([install.bin / "graspsim-run", "--help"], install)
     run([install.python, "-m", "fsm.run", "--scene", "clutter3"], install)

@@ -77,32 +77,32 @@ TARGETS: tuple[Target, ...] = (
     Target(
         "wrench",
         "controllers/grasp/wrench.py",
-        ("tests/test_wrench.py", "tests/test_composition.py", "tests/test_trials.py"),
+        ("tests/grasp/test_wrench.py", "tests/grasp/test_composition.py", "tests/grasp/test_trials.py"),
     ),
     Target(
         "composition",
         "controllers/grasp/composition.py",
-        ("tests/test_composition.py", "tests/test_trials.py"),
+        ("tests/grasp/test_composition.py", "tests/grasp/test_trials.py"),
     ),
     Target(
         "trials",
         "controllers/grasp/trials.py",
-        ("tests/test_trials.py", "tests/test_wrench.py", "tests/test_preimaging.py"),
+        ("tests/grasp/test_trials.py", "tests/grasp/test_wrench.py", "tests/grasp/test_preimaging.py"),
     ),
     Target(
         "polygon",
         "controllers/grasp/polygon.py",
         (
-            "tests/test_polygon.py",
-            "tests/test_wrench.py",
-            "tests/test_score.py",
-            "tests/test_trials.py",
-            "tests/test_parser_fuzz.py",
+            "tests/grasp/test_polygon.py",
+            "tests/grasp/test_wrench.py",
+            "tests/grasp/test_score.py",
+            "tests/grasp/test_trials.py",
+            "tests/commands/test_parser_fuzz.py",
         ),
     ),
-    Target("score", "controllers/grasp/score.py", ("tests/test_score.py", "tests/test_trials.py")),
-    Target("edges", "vision/edges.py", ("tests/test_vision_edges.py", "tests/test_vision.py")),
-    Target("geometry", "hand_sim/geometry.py", ("tests/test_scene.py",)),
+    Target("score", "controllers/grasp/score.py", ("tests/grasp/test_score.py", "tests/grasp/test_trials.py")),
+    Target("edges", "vision/edges.py", ("tests/vision/test_vision_edges.py", "tests/vision/test_vision.py")),
+    Target("geometry", "hand_sim/geometry.py", ("tests/hand_sim/test_scene.py",)),
 )
 
 

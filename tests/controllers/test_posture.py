@@ -14,19 +14,18 @@ from controllers.posture import (
     world_log_manipulability,
 )
 from hand_sim.indices import RobotIndices
-from tests.reach_fixtures import hover_over_target
 
 
 @pytest.fixture(scope="module")
-def hovering():
+def hovering_world(hovering):
     """clutter3 with the arm driven (in simulation) to the coarse-reach goal above the target."""
-    return hover_over_target()[0]
+    return hovering[0]
 
 
-def test_manipulability_matches_a_finite_difference_jacobian(hovering):
-    model = hovering.model
+def test_manipulability_matches_a_finite_difference_jacobian(hovering_world):
+    model = hovering_world.model
     data = mujoco.MjData(model)
-    data.qpos[:] = hovering.data.qpos
+    data.qpos[:] = hovering_world.data.qpos
     mujoco.mj_forward(model, data)
     idx = RobotIndices.of(model)
     w = finger_manipulability(model, data, idx)
@@ -42,8 +41,8 @@ def test_manipulability_matches_a_finite_difference_jacobian(hovering):
         np.testing.assert_allclose(w[f], np.sqrt(np.linalg.det(J @ J.T)), rtol=1e-4)
 
 
-def test_posture_control_raises_manipulability_and_holds_fingertips_in_simulation(hovering):
-    world = hovering
+def test_posture_control_raises_manipulability_and_holds_fingertips_in_simulation(hovering_world):
+    world = hovering_world
     tips_before = world.fingertip_positions()
     m_before = world_log_manipulability(world)
     result = solve_posture(world)
@@ -60,8 +59,8 @@ def test_posture_control_raises_manipulability_and_holds_fingertips_in_simulatio
         assert np.all(q >= ranges[:, 0] - 1e-3) and np.all(q <= ranges[:, 1] + 1e-3)
 
 
-def test_unreachable_fingertip_targets_are_reported(hovering):
-    world = hovering
+def test_unreachable_fingertip_targets_are_reported(hovering_world):
+    world = hovering_world
     tips = world.fingertip_positions()
     far = solve_posture(world, tips + np.array([2.0, 0.0, 0.0]), optimize=False)
     assert not far.reachable

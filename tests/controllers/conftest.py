@@ -1,6 +1,8 @@
-"""Shared set-up of the reach and posture tests: clutter3 with the arm at its coarse-reach goal."""
+"""Fixtures of the controller tests: clutter3 with the arm driven to its coarse-reach goal."""
 
 from __future__ import annotations
+
+import pytest
 
 from controllers.arm_path import execute_path
 from controllers.reach import ReachTarget, plan_coarse_reach
@@ -17,3 +19,10 @@ def hover_over_target(scene: str = "clutter3") -> tuple[World, ReachTarget]:
     assert plan.found, plan.reason
     execute_path(world, plan.path.path, hand_q=plan.hand_q)
     return world, target
+
+
+@pytest.fixture(scope="module")
+def hovering() -> tuple[World, ReachTarget]:
+    """clutter3 with the arm above the target block, and the target; one per test module (the
+    tests of a module may move the arm and hand, so modules do not share it)."""
+    return hover_over_target()

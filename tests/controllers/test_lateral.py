@@ -166,6 +166,7 @@ def test_the_lateral_goal_has_the_thumb_below(world: World) -> None:
 
 
 @pytest.mark.parametrize("seed", [0])
+@pytest.mark.e2e
 def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path) -> None:
     out = tmp_path / "lateral"
     code = main(

@@ -4,7 +4,6 @@ in simulation, from the coarse-reach posture above clutter3's target."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from controllers.fine_reach import (
     GRASP_DEPTH,
@@ -19,12 +18,6 @@ from controllers.harmonic import ascend
 from controllers.reach import ReachTarget
 from hand_sim.scene import load_scene
 from hand_sim.world import World
-from tests.reach_fixtures import hover_over_target
-
-
-@pytest.fixture(scope="module")
-def hovering():
-    return hover_over_target()
 
 
 def outline_distance(target: ReachTarget, xy: np.ndarray) -> np.ndarray:

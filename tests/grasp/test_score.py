@@ -3,9 +3,9 @@
 import clarabel
 import numpy as np
 import pytest
-from scipy.optimize import linprog
 
 from controllers.grasp import SUCCESS_THRESHOLD, GraspScore, grasp_score, paper_object
+from tests.grasp.independent_score import linprog_score
 
 SQUARE_NORMALS = {"+x": (1.0, 0.0), "-x": (-1.0, 0.0), "+y": (0.0, 1.0), "-y": (0.0, -1.0)}
 
@@ -87,29 +87,6 @@ def test_friction_coefficient_bounds_the_tangential_force():
     offset = ([(1, 0.5), (-1, -0.5)], [SQUARE_NORMALS["+x"], SQUARE_NORMALS["-x"]])
     assert grasp_score(*offset, friction=0.5).s_g == pytest.approx(0.5, abs=1e-6)
     assert not grasp_score(*offset, friction=0.4).feasible
-
-
-def linprog_score(points, normals, task=None, mu=1.0):
-    """Independent S_G with scipy/HiGHS over x = [N, T+, T-]."""
-    p, nrm = np.asarray(points, float), np.asarray(normals, float)
-    task = np.zeros(3) if task is None else task
-    n = len(p)
-    tan = np.stack([-nrm[:, 1], nrm[:, 0]], 1)
-    cols = []
-    for f in (-nrm, tan, -tan):
-        cols.append(np.stack([f[:, 0], f[:, 1], p[:, 0] * f[:, 1] - p[:, 1] * f[:, 0]]) / n)
-    a_eq = np.hstack(cols)
-    a_ub = np.hstack([-mu * np.eye(n), np.eye(n), np.eye(n)])
-    res = linprog(
-        np.ones(3 * n),
-        A_ub=a_ub,
-        b_ub=np.zeros(n),
-        A_eq=a_eq,
-        b_eq=task,
-        bounds=[(1, None)] * n + [(0, None)] * (2 * n),
-        method="highs",
-    )
-    return res.fun / n - 1.0 if res.status == 0 else None
 
 
 @pytest.mark.parametrize("name", ["triangle", "irregular_pentagon", "rectangle", "hexagon"])

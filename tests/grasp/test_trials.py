@@ -14,7 +14,7 @@ from controllers.grasp.score import grasp_score
 from controllers.grasp.trials import CONVERGENCE_STEP, GAIN, PolygonBatch, control_state
 from controllers.grasp.wrench import mc_residual
 from experiments.paper.tables import PAPER_TABLE1_KB, table1_rows
-from tests.test_score import linprog_score
+from tests.grasp.independent_score import linprog_score
 
 
 def test_luce_rule_switches_at_the_fc_threshold():

@@ -10,6 +10,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from experiments.bench.jobs import blocks_for_seed
 from fsm.config import DEFAULT_CONFIG, TaskConfig
@@ -51,6 +52,7 @@ def test_grasp_object_may_hand_back_to_fine_reach_for_a_regrasp() -> None:
     assert not allowed(State.GRASP_OBJECT, State.WRENCH_CLOSURE)
 
 
+@pytest.mark.e2e
 def test_palm_pose_search_finds_a_posture_the_roll_seeds_miss(tmp_path: Path) -> None:
     """Random scene 11 (an irregular hexagon): the arm's IK from every wrist-roll seed reaches
     none of the contacts; the palm-pose search above the block finds a posture, and the block is
@@ -66,6 +68,7 @@ def test_palm_pose_search_finds_a_posture_the_roll_seeds_miss(tmp_path: Path) ->
     _delivered_physically(result)
 
 
+@pytest.mark.e2e
 def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Path) -> None:
     """Random scene 2 (a trapezoid): the thumb loses the block in the squeeze; the hand opens and
     regrasps from Fine Reach with the wrist turned, and the block is delivered."""
@@ -81,6 +84,7 @@ def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Pat
     _delivered_physically(result)
 
 
+@pytest.mark.e2e
 def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> None:
     """With no regrasp allowed, the same squeeze failure ends the episode with the reason of
     Grasp Object (fingers cannot reach), not the regrasp's."""
@@ -91,6 +95,7 @@ def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> Non
     assert result.visits[-1].state == State.GRASP_OBJECT.value
 
 
+@pytest.mark.e2e
 def test_clutter5_is_cleared_block_by_block(tmp_path: Path) -> None:
     """`--scene clutter5 --cycles all` (issue 9's acceptance): five cycles, each block picked,
     carried and set down at a free slot, judged physically after each retreat; later slots lie
@@ -109,6 +114,7 @@ def test_clutter5_is_cleared_block_by_block(tmp_path: Path) -> None:
         assert max(j["other_blocks_moved_m"].values()) < 0.01, cycle["block"]
 
 
+@pytest.mark.e2e
 def test_a_scene_place_point_the_hand_cannot_set_down_at_gives_way_to_a_free_slot(
     tmp_path: Path,
 ) -> None:

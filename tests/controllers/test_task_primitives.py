@@ -23,12 +23,6 @@ from controllers.transport import held_load, timed_path
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World
-from tests.reach_fixtures import hover_over_target
-
-
-@pytest.fixture(scope="module")
-def hovering():
-    return hover_over_target()
 
 
 def shifted(target: ReachTarget, dx: float) -> ReachTarget:

@@ -255,6 +255,7 @@ def test_ray_missing_is_one_line(tmp_path: Path, capsys, monkeypatch) -> None:
     assert "--ray" in err and "graspsim[ray]" in err
 
 
+@pytest.mark.e2e
 def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsys) -> None:
     lines = _synthetic_lines()
     for line in lines:
@@ -284,6 +285,7 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
 
 
 # --- real episodes --------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_crashed_episode_is_a_failure_with_its_recording(tmp_path: Path, monkeypatch) -> None:
     def bug(ep):
         raise RuntimeError("a bug in Select/Model")
@@ -315,6 +317,7 @@ def two_workers(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.e2e
 def test_two_workers_write_results_recordings_and_report(two_workers: Path) -> None:
     lines = lines_of(two_workers)
     assert sorted(lines) == [0, 1, 2]
@@ -334,6 +337,7 @@ def test_two_workers_write_results_recordings_and_report(two_workers: Path) -> N
     assert not [p for p in two_workers.iterdir() if p.name.startswith(".")]
 
 
+@pytest.mark.e2e
 def test_resume_in_one_process_gives_the_two_workers_results(two_workers, tmp_path) -> None:
     """Seed 0 is kept, seeds 1 and 2 run one after the other in this process: the same lines as
     the 2-worker run, wall times aside."""
@@ -358,6 +362,7 @@ def test_resume_in_one_process_gives_the_two_workers_results(two_workers, tmp_pa
     importlib.util.find_spec("ray") is None,
     reason="ray is not installed (the optional extra: pip install -e '.[ray]')",
 )
+@pytest.mark.e2e
 def test_ray_local_gives_the_same_results(two_workers: Path, tmp_path: Path) -> None:
     out = tmp_path / "ray"
     argv = [*QUICK, "--seeds", "0:2", "--ray", "local", "--workers", "2", "--out", str(out)]

@@ -55,6 +55,7 @@ def quick(tmp_path_factory) -> tuple[Path, list[dict], dict]:
     return out, results, json.loads((out / "summary.json").read_text())
 
 
+@pytest.mark.e2e
 def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -> None:
     out, results, summary = quick
     assert len(results) == len(QUICK_OBJECTS) * 3 * QUICK_GRASPS
@@ -82,6 +83,7 @@ def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -
     assert "S_G as a predictor" in report and (out / "roc.png").stat().st_size > 1000
 
 
+@pytest.mark.e2e
 def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> None:
     _, results, _ = quick
     obj = QUICK_OBJECTS[0]

@@ -121,6 +121,7 @@ def clutter3_episode(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, di
     return out, {"code": code, **summary}
 
 
+@pytest.mark.e2e
 def test_clutter3_is_picked_and_placed_physically(clutter3_episode) -> None:
     _, s = clutter3_episode
     assert s["code"] == 0 and s["success"], s["failure_detail"]
@@ -141,6 +142,7 @@ def test_clutter3_is_picked_and_placed_physically(clutter3_episode) -> None:
     assert cycle["polygon_error"]["edges"] == cycle["polygon_error"]["true_edges"]
 
 
+@pytest.mark.e2e
 def test_clutter3_recording_holds_what_a_reader_needs(clutter3_episode) -> None:
     out, _ = clutter3_episode
     rrd = out / "episode.rrd"
@@ -158,6 +160,7 @@ def test_clutter3_recording_holds_what_a_reader_needs(clutter3_episode) -> None:
     assert any("eps" in n.lower() or "synthesis" in n.lower() for n in names)
 
 
+@pytest.mark.e2e
 def test_same_seed_same_episode(tmp_path: Path) -> None:
     runs = []
     for k in range(2):
@@ -181,6 +184,7 @@ def _scene_file(tmp_path: Path, table_x: float, position: tuple[float, float]) -
     return path
 
 
+@pytest.mark.e2e
 def test_a_block_out_of_reach_fails_with_its_reason_and_writes_both_files(tmp_path: Path) -> None:
     # the table moved away from the arm: the block stands 1.45 m from the waist axis
     scene = _scene_file(tmp_path, 0.45, (0.85, 0.0))
@@ -193,6 +197,7 @@ def test_a_block_out_of_reach_fails_with_its_reason_and_writes_both_files(tmp_pa
     assert "events" in read_recording(out / "episode.rrd")
 
 
+@pytest.mark.e2e
 def test_an_unstable_simulation_fails_cleanly(tmp_path: Path, monkeypatch) -> None:
     original = handlers.HANDLERS[State.FINE_REACH]
 
@@ -209,6 +214,7 @@ def test_an_unstable_simulation_fails_cleanly(tmp_path: Path, monkeypatch) -> No
     assert "events" in read_recording(tmp_path / "episode.rrd")
 
 
+@pytest.mark.e2e
 def test_a_state_past_its_budget_fails(tmp_path: Path, monkeypatch) -> None:
     import dataclasses
 
@@ -220,6 +226,7 @@ def test_a_state_past_its_budget_fails(tmp_path: Path, monkeypatch) -> None:
     assert "Coarse Reach" in result.failure_detail
 
 
+@pytest.mark.e2e
 def test_interrupt_keeps_the_summary_and_the_recording(tmp_path: Path, monkeypatch) -> None:
     def interrupt(ep):
         raise KeyboardInterrupt
