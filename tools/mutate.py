@@ -77,7 +77,11 @@ TARGETS: tuple[Target, ...] = (
     Target(
         "wrench",
         "controllers/grasp/wrench.py",
-        ("tests/grasp/test_wrench.py", "tests/grasp/test_composition.py", "tests/grasp/test_trials.py"),
+        (
+            "tests/grasp/test_wrench.py",
+            "tests/grasp/test_composition.py",
+            "tests/grasp/test_trials.py",
+        ),
     ),
     Target(
         "composition",
@@ -87,7 +91,11 @@ TARGETS: tuple[Target, ...] = (
     Target(
         "trials",
         "controllers/grasp/trials.py",
-        ("tests/grasp/test_trials.py", "tests/grasp/test_wrench.py", "tests/grasp/test_preimaging.py"),
+        (
+            "tests/grasp/test_trials.py",
+            "tests/grasp/test_wrench.py",
+            "tests/grasp/test_preimaging.py",
+        ),
     ),
     Target(
         "polygon",
@@ -100,8 +108,16 @@ TARGETS: tuple[Target, ...] = (
             "tests/commands/test_parser_fuzz.py",
         ),
     ),
-    Target("score", "controllers/grasp/score.py", ("tests/grasp/test_score.py", "tests/grasp/test_trials.py")),
-    Target("edges", "vision/edges.py", ("tests/vision/test_vision_edges.py", "tests/vision/test_vision.py")),
+    Target(
+        "score",
+        "controllers/grasp/score.py",
+        ("tests/grasp/test_score.py", "tests/grasp/test_trials.py"),
+    ),
+    Target(
+        "edges",
+        "vision/edges.py",
+        ("tests/vision/test_vision_edges.py", "tests/vision/test_vision.py"),
+    ),
     Target("geometry", "hand_sim/geometry.py", ("tests/hand_sim/test_scene.py",)),
 )
 
