@@ -31,7 +31,7 @@ from experiments.physics.study import (
 )
 from hand_sim.indices import RobotIndices
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:

@@ -16,7 +16,7 @@ from hand_sim.errors import HandSimError
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 #: A block's top face found in the image must be this close (m) to its scene position.
 POSITION_TOL = 0.003
 #: Pixels within this depth (m) of a block's top plane belong to its top face.

@@ -13,7 +13,7 @@ import pytest
 from benchmarks import hand_reachability as reach
 from controllers.grasp import paper_object
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
+MODELS = Path(__file__).resolve().parents[2] / "models"
 MODEL_FILES = ("hand.xml", "hand_scene.xml", "arm.xml", "table.xml")
 FINGERS = ("ff", "mf", "rf", "th")
 HAND_ACTUATORS = tuple(f"{f}a{i}" for f in FINGERS for i in range(4))

@@ -10,7 +10,7 @@ import pytest
 from hand_sim import resources
 from hand_sim.resources import DataNotFoundError, data_dir, models_dir, scenes_dir
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_checkout_uses_its_top_level_folders() -> None:

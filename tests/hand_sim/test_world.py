@@ -168,7 +168,7 @@ def test_scene_table_must_match_the_table_model(tmp_path, table: str, field: str
 
 def test_a_block_at_the_scene_table_edge_stands_on_the_physical_table(tmp_path) -> None:
     """The scene's table is the collision table: a block allowed at its edge does not fall."""
-    from hand_sim.scene import DEFAULT_TABLE_SIZE, TABLE_EDGE_MARGIN
+    from hand_sim.scene_spec import DEFAULT_TABLE_SIZE, TABLE_EDGE_MARGIN
 
     half = float(np.abs(paper_object("square").vertices[:, 0]).max())
     edge = 0.5 * DEFAULT_TABLE_SIZE[0] - TABLE_EDGE_MARGIN - half - 1e-4
