@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 import rerun as rr
@@ -33,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fsm.recorder_protocol import SynthesisRecord, VisionView
 from hand_sim.errors import HandSimError
+from hand_sim.lifetime import ClosesOnExit
 from hand_sim.recorder import (
     CAMERAS_PATH,
     EVENTS_PATH,
@@ -99,7 +99,7 @@ def _points(what: str, value: ArrayLike, dim: int, min_rows: int = 0) -> NDArray
     return a
 
 
-class EpisodeRecorder:
+class EpisodeRecorder(ClosesOnExit):
     """Records one task-cycle episode of ``world`` to ``path`` (``.rrd``); see the module
     docstring for what is logged where. Use as a context manager (or call :meth:`close`): the
     file is complete after close, also when the episode raises (the exception is logged as an
@@ -384,15 +384,9 @@ class EpisodeRecorder:
                 rec, self._rec = self._rec, None
                 rec.close()
 
-    def __enter__(self) -> EpisodeRecorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def _exit(self, exc_type: type[BaseException] | None, exc: BaseException | None) -> None:
+        """Leaving the ``with`` block on an exception logs it as an ERROR event and skips the
+        final frame (:meth:`close`)."""
         try:
             if exc is not None and self._rec is not None:
                 name = exc_type.__name__ if exc_type else "error"
