@@ -25,6 +25,7 @@ from controllers.grasp.session import GraspSynthesis
 from controllers.grip import move_hand
 from controllers.reach import ReachTarget, plan_coarse_reach
 from controllers.transport import move_palm
+from fsm.recorder_protocol import SynthesisRecord, VisionView
 from fsm.recording import EpisodeRecorder
 from hand_sim.contacts import robot_contacts
 from hand_sim.scene import load_scene
@@ -62,12 +63,14 @@ def run(out: Path, hold: float) -> None:
         positions = {b.name: world.block_pose(b.name)[0][:2] for b in scene.blocks}
         model = select(obs, name=target, block_positions=positions)
         rec.log_vision(
-            obs.rgb,
-            obs.geometry.K,
-            obs.geometry.cam_to_world,
-            model.world_vertices,
-            model.pixel_contour,
-            float(model.centroid[2]),
+            VisionView(
+                obs.rgb,
+                obs.geometry.K,
+                obs.geometry.cam_to_world,
+                model.world_vertices,
+                model.pixel_contour,
+                float(model.centroid[2]),
+            )
         )
         rec.set_target(target)
         rec.log_transition("Select/Model", "Coarse Reach", f"{model.n_edges}-gon modelled")
@@ -85,7 +88,9 @@ def run(out: Path, hold: float) -> None:
             s = synth.step()
             xy = model.to_world(np.array([model.polygon.point_at(t) for t in s.theta]))
             contacts = np.column_stack([xy, np.full(len(xy), z_grasp)])
-            rec.log_synthesis(s.step, s.eps_fc, s.eps_mc, s.predicted_failure, contacts)
+            rec.log_synthesis(
+                SynthesisRecord(s.step, s.eps_fc, s.eps_mc, s.predicted_failure, contacts)
+            )
         score = synth.finish()
         rec.log_reachability(1, True, f"S_G = {score.s_g:.3f} after {synth.steps} steps")
         rec.log_transition("Wrench Closure", "Grasp Object", "contacts reachable")

@@ -24,14 +24,15 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import ArrayLike, NDArray
 
+from fsm.recorder_protocol import SynthesisRecord, VisionView
 from hand_sim.errors import HandSimError
+from hand_sim.lifetime import ClosesOnExit
 from hand_sim.recorder import (
     CAMERAS_PATH,
     EVENTS_PATH,
@@ -98,7 +99,7 @@ def _points(what: str, value: ArrayLike, dim: int, min_rows: int = 0) -> NDArray
     return a
 
 
-class EpisodeRecorder:
+class EpisodeRecorder(ClosesOnExit):
     """Records one task-cycle episode of ``world`` to ``path`` (``.rrd``); see the module
     docstring for what is logged where. Use as a context manager (or call :meth:`close`): the
     file is complete after close, also when the episode raises (the exception is logged as an
@@ -233,25 +234,16 @@ class EpisodeRecorder:
         """A state transition of the machine, with its reason, in the event log."""
         self._event(f"{from_state} -> {to_state}: {reason}", level)
 
-    def log_vision(
-        self,
-        rgb: NDArray[np.uint8],
-        K: ArrayLike,
-        pose: ArrayLike,
-        polygon_world: ArrayLike,
-        pixel_contour: ArrayLike,
-        z_top: float,
-        *,
-        name: str = "vision",
-    ) -> None:
+    def log_vision(self, view: VisionView) -> None:
         """The Select/Model image with its pinhole at ``world/cameras/<name>`` (``K`` 3x3 pixels,
         ``pose`` 4x4 camera-to-world in OpenCV axes), the extracted contour drawn over it
         (``pixel_contour`` (k, 2) pixels) and the perceived polygon in 3D (``polygon_world``
         (k, 2) world xy at height ``z_top``), also projected onto the overhead image. A new
         Select/Model clears the previous cycle's virtual contacts."""
-        img = np.asarray(rgb)
-        K_ = np.asarray(K, dtype=float)
-        T = np.asarray(pose, dtype=float)
+        name, z_top = view.name, view.z_top
+        img = np.asarray(view.rgb)
+        K_ = np.asarray(view.K, dtype=float)
+        T = np.asarray(view.pose, dtype=float)
         if (
             K_.shape != (3, 3)
             or T.shape != (4, 4)
@@ -260,8 +252,8 @@ class EpisodeRecorder:
             raise HandSimError(
                 f"log_vision needs K (3, 3) and pose (4, 4), finite; got {K_.shape} and {T.shape}"
             )
-        poly = _points("polygon_world", polygon_world, 2, min_rows=3)
-        contour = _points("pixel_contour", pixel_contour, 2, min_rows=3)
+        poly = _points("polygon_world", view.polygon_world, 2, min_rows=3)
+        contour = _points("pixel_contour", view.pixel_contour, 2, min_rows=3)
         if not math.isfinite(z_top):
             raise HandSimError(f"z_top must be finite, got {z_top!r}")
         if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -307,23 +299,16 @@ class EpisodeRecorder:
         )
         stream.log(SYNTHESIS_CONTACTS, rr.Points3D(np.zeros((0, 3))))
 
-    def log_synthesis(
-        self,
-        step: int,
-        eps_fc: float,
-        eps_mc: float,
-        predicted_failure: bool | None,
-        contacts_world: ArrayLike,
-        s_g: float | None = None,
-    ) -> None:
+    def log_synthesis(self, record: SynthesisRecord) -> None:
         """One Wrench Closure controller step (sections 3.6, 5.2): eps_FC (Eq. 5), eps_MC
         (Eq. 10), the F/S predictor's output (1 = failure predicted, the PI controller injects
         noise; omitted when None, as for kb and ql), S_G (Eq. 13) if given, and the virtual
         contacts (n, 3) world points. Logged at the current simulated time and on the
         ``synthesis_step`` timeline, which counts the controller's steps over the whole episode:
         a run whose ``step`` restarts continues the timeline after the previous run."""
-        pts = _points("contacts_world", contacts_world, 3)
-        values = {"eps_fc": eps_fc, "eps_mc": eps_mc}
+        step, predicted_failure, s_g = record.step, record.predicted_failure, record.s_g
+        pts = _points("contacts_world", record.contacts_world, 3)
+        values = {"eps_fc": record.eps_fc, "eps_mc": record.eps_mc}
         if predicted_failure is not None:
             values["predicted_failure"] = float(bool(predicted_failure))
         if s_g is not None:
@@ -399,15 +384,9 @@ class EpisodeRecorder:
                 rec, self._rec = self._rec, None
                 rec.close()
 
-    def __enter__(self) -> EpisodeRecorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def _exit(self, exc_type: type[BaseException] | None, exc: BaseException | None) -> None:
+        """Leaving the ``with`` block on an exception logs it as an ERROR event and skips the
+        final frame (:meth:`close`)."""
         try:
             if exc is not None and self._rec is not None:
                 name = exc_type.__name__ if exc_type else "error"

@@ -57,6 +57,10 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
     )
 
 
+#: Argument type of a pixel (column, row) of the overhead image.
+pixel = numbers(2, "U,V")
+
+
 def parser() -> ArgumentParser:
     ap = ArgumentParser(prog=PROG, description=first_paragraph(__doc__))
     ap.add_argument(
@@ -80,13 +84,12 @@ def parser() -> ArgumentParser:
     pick.add_argument(
         "--pick", default=None, help="name of the block to pick first (default: the scene's target)"
     )
+    image = f"{IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image"
     pick.add_argument(
         "--pick-pixel",
-        type=numbers(2, "U,V"),
-        default=None,
+        type=pixel,
         metavar="U,V",
-        help=f"pick the block at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} overhead image "
-        "(u column, v row)",
+        help=f"pick the block at this pixel of the {image} (u column, v row)",
     )
     place = ap.add_mutually_exclusive_group()
     place.add_argument(
@@ -98,11 +101,9 @@ def parser() -> ArgumentParser:
     )
     place.add_argument(
         "--place-pixel",
-        type=numbers(2, "U,V"),
-        default=None,
+        type=pixel,
         metavar="U,V",
-        help=f"place at the table point seen at this pixel of the {IMAGE_WIDTH}x{IMAGE_HEIGHT} "
-        "overhead image",
+        help=f"place at the table point seen at this pixel of the {image}",
     )
     add_controller_and_approach(ap)
     ap.add_argument(

@@ -314,3 +314,69 @@ def run_main(
         except expected as e:
             _say(prog, str(e) or type(e).__name__)
             return EXIT_BAD_INPUT
+
+
+def run_command(
+    build_parser: Callable[[], ArgumentParser],
+    argv: Sequence[str] | None,
+    *,
+    prog: str,
+    errors: Sequence[type[BaseException]] = ERRORS,
+    command: Callable[[argparse.Namespace], int | None] | None = None,
+) -> int:
+    """:func:`run_main` of a command whose parser ``build_parser`` makes: parse ``argv`` (default
+    ``sys.argv[1:]``), keep it as ``args.argv`` (the command line, for the records a run writes)
+    and run ``command(args)`` (default ``args.func``, the sub-command's, set by
+    ``set_defaults(func=...)``)."""
+
+    def body() -> int | None:
+        args = build_parser().parse_args(argv)
+        args.argv = " ".join(sys.argv[1:] if argv is None else argv)
+        return (command or args.func)(args)
+
+    return run_main(body, prog=prog, errors=errors)
+
+
+# --- arguments several commands share ---------------------------------------------------------
+
+
+def add_seed_argument(parser: argparse.ArgumentParser) -> None:
+    """``--seed``: the random seed, 0..SEED_MAX, default 0."""
+    parser.add_argument("--seed", type=seed, default=0, help=f"random seed, 0..{SEED_MAX}")
+
+
+def add_workers_argument(parser: argparse.ArgumentParser, most: int) -> None:
+    """``--workers``: worker processes, 1..``most``, default 2 (the cores of a small machine)."""
+    parser.add_argument(
+        "--workers", type=integer(1, most), default=2, help=f"worker processes, 1..{most}"
+    )
+
+
+def add_json_argument(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """``--json FILE``: a JSON file the results are written to (``help_text`` says which)."""
+    parser.add_argument("--json", type=out_file(".json"), metavar="FILE", help=help_text)
+
+
+def command_parser(
+    prog: str, description: str
+) -> tuple[ArgumentParser, argparse._SubParsersAction[ArgumentParser]]:
+    """The parser of a command with sub-commands, and the sub-parsers to add them to
+    (:func:`add_command`); its description ends with how to see a sub-command's flags and what
+    bad input and Ctrl-C do."""
+    parser = ArgumentParser(
+        prog=prog,
+        description=f"{description} `{prog} COMMAND --help` shows a command's flags. Bad input "
+        "is one line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
+    )
+    return parser, parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+
+def add_command(
+    commands: argparse._SubParsersAction[ArgumentParser],
+    name: str,
+    help_text: str,
+    description: str | None = None,
+) -> ArgumentParser:
+    """Sub-command ``name``: ``help_text`` in the command list, and as its ``--help``
+    description unless ``description`` is given."""
+    return commands.add_parser(name, help=help_text, description=description or help_text)

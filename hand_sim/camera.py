@@ -12,7 +12,6 @@ from __future__ import annotations
 import importlib
 import math
 import os
-from types import TracebackType
 
 import mujoco
 import numpy as np
@@ -20,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hand_sim.assembly import CAMERA_NAME, MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.errors import HandSimError
+from hand_sim.lifetime import ClosesOnExit
 from hand_sim.world import World
 
 #: MuJoCo's camera frame looks along -z with y up; OpenCV's along +z with y down.
@@ -43,7 +43,7 @@ def ensure_gl_backend() -> None:
         importlib.reload(gl_context)
 
 
-class OverheadCamera:
+class OverheadCamera(ClosesOnExit):
     """RGB, depth and segmentation images of the world's ``overhead`` camera, with its
     intrinsics ``K`` and pose, and conversions between pixels and world points."""
 
@@ -166,14 +166,3 @@ class OverheadCamera:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-    def __enter__(self) -> OverheadCamera:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

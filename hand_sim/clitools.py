@@ -23,6 +23,8 @@ A command looks like this::
 
 from __future__ import annotations
 
+import argparse
+
 from controllers.grasp.errors import GraspError
 from graspsim_base.cli import (
     EXIT_BAD_INPUT,
@@ -31,6 +33,9 @@ from graspsim_base.cli import (
     ArgumentParser,
     CommandLineError,
     Interrupted,
+    add_json_argument,
+    add_seed_argument,
+    add_workers_argument,
     first_paragraph,
     integer,
     number,
@@ -41,11 +46,14 @@ from graspsim_base.cli import (
     partial_results_in,
     prepare_dir,
     prepare_file,
+    run_command,
     run_main,
     seed,
 )
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.errors import HandSimError
+from hand_sim.random_scene import MAX_RANDOM_BLOCKS
+from hand_sim.scene import RANDOM_SCENE
 
 #: Errors a hand_sim command reports as bad input (scene files, scene names, image sizes, a
 #: simulation that went wrong, and the polygons scenes are made of).
@@ -55,6 +63,59 @@ ERRORS: tuple[type[BaseException], ...] = (HandSimError, GraspError)
 image_width = integer(16, MAX_RENDER_WIDTH)
 image_height = integer(16, MAX_RENDER_HEIGHT)
 
+
+def add_scene_arguments(parser: argparse.ArgumentParser, scene_help: str, blocks_help: str) -> None:
+    """``--scene`` (default clutter3) and, for ``--scene random`` only, ``--seed`` and
+    ``--blocks`` (default None: the random scene's own; :func:`check_scene_arguments` refuses them
+    with another scene). ``blocks_help`` starts the help of ``--blocks``."""
+    parser.add_argument("--scene", default="clutter3", help=scene_help)
+    parser.add_argument(
+        "--seed",
+        type=seed,
+        default=None,
+        help=f"seed of --scene random, 0..{SEED_MAX} (default 0)",
+    )
+    parser.add_argument(
+        "--blocks",
+        type=integer(1, MAX_RANDOM_BLOCKS),
+        default=None,
+        help=f"{blocks_help} of --scene random, 1..{MAX_RANDOM_BLOCKS} (default 3)",
+    )
+
+
+def check_scene_arguments(args: argparse.Namespace) -> None:
+    """Refuse ``--seed`` or ``--blocks`` (:func:`add_scene_arguments`) with a scene other than
+    ``random``."""
+    if args.scene != RANDOM_SCENE:
+        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
+            if value is not None:
+                raise CommandLineError(
+                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
+                )
+
+
+def add_image_size_arguments(
+    parser: argparse.ArgumentParser,
+    what: str,
+    width: int = MAX_RENDER_WIDTH,
+    height: int = MAX_RENDER_HEIGHT,
+) -> None:
+    """``--width`` and ``--height`` (pixels, 16 up to what hand_sim renders, default ``width``
+    x ``height``) of the image ``what`` names."""
+    parser.add_argument(
+        "--width",
+        type=image_width,
+        default=width,
+        help=f"{what} width, pixels, 16..{MAX_RENDER_WIDTH}",
+    )
+    parser.add_argument(
+        "--height",
+        type=image_height,
+        default=height,
+        help=f"{what} height, pixels, 16..{MAX_RENDER_HEIGHT}",
+    )
+
+
 __all__ = [
     "ERRORS",
     "EXIT_BAD_INPUT",
@@ -63,6 +124,12 @@ __all__ = [
     "ArgumentParser",
     "CommandLineError",
     "Interrupted",
+    "add_image_size_arguments",
+    "add_json_argument",
+    "add_scene_arguments",
+    "add_seed_argument",
+    "add_workers_argument",
+    "check_scene_arguments",
     "first_paragraph",
     "image_height",
     "image_width",
@@ -75,6 +142,7 @@ __all__ = [
     "partial_results_in",
     "prepare_dir",
     "prepare_file",
+    "run_command",
     "run_main",
     "seed",
 ]

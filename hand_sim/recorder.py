@@ -22,7 +22,6 @@ import uuid
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
-from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 import mujoco
@@ -33,6 +32,7 @@ from rerun.chunk import RrdReader
 
 from graspsim_base.files import temporary_name
 from hand_sim.errors import HandSimError
+from hand_sim.lifetime import ClosesOnExit
 
 if TYPE_CHECKING:
     from hand_sim.world import World
@@ -124,7 +124,7 @@ def geom_archetype(model: mujoco.MjModel, g: int) -> Any | None:
     return None
 
 
-class Recorder:
+class Recorder(ClosesOnExit):
     """Writes one episode to ``path`` (``.rrd``). Use as a context manager: the file is flushed
     and closed on exit, also when the body raises or is interrupted by Ctrl-C (the exception is
     logged as an ERROR event and then propagates).
@@ -349,15 +349,8 @@ class Recorder:
                     if self._partial.exists():
                         os.replace(self._partial, self.path)
 
-    def __enter__(self) -> Recorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def _exit(self, exc_type: type[BaseException] | None, exc: BaseException | None) -> None:
+        """Leaving the ``with`` block on an exception logs it as an ERROR event, then closes."""
         try:
             if exc is not None and self._rec is not None:
                 self.log_event(

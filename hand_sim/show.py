@@ -27,10 +27,9 @@ from hand_sim import clitools as cli
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.camera import OverheadCamera
 from hand_sim.errors import HandSimError
-from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.recorder import Recorder
 from hand_sim.robot import ARM_JOINTS, FINGERS
-from hand_sim.scene import RANDOM_SCENE, load_scene
+from hand_sim.scene import load_scene
 from hand_sim.world import World
 
 PROG = "python -m hand_sim.show"
@@ -76,19 +75,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "save the overhead image as DIR/overhead.png and record the arm moving through a few "
         "targets to DIR/episode.rrd (open it with `rerun DIR/episode.rrd`).",
     )
-    p.add_argument("--scene", default="clutter3", help="scene name or .toml path")
-    p.add_argument(
-        "--seed",
-        type=cli.seed,
-        default=None,
-        help=f"seed of --scene random, 0..{cli.SEED_MAX} (default 0)",
-    )
-    p.add_argument(
-        "--blocks",
-        type=cli.integer(1, MAX_RANDOM_BLOCKS),
-        default=None,
-        help=f"number of blocks of --scene random, 1..{MAX_RANDOM_BLOCKS} (default 3)",
-    )
+    cli.add_scene_arguments(p, "scene name or .toml path", "number of blocks")
     p.add_argument(
         "--out",
         type=cli.out_dir,
@@ -96,25 +83,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="DIR",
         help="output folder: episode.rrd and overhead.png",
     )
-    p.add_argument(
-        "--width",
-        type=cli.image_width,
-        default=DEFAULT_WIDTH,
-        help=f"overhead image width, pixels, 16..{MAX_RENDER_WIDTH}",
-    )
-    p.add_argument(
-        "--height",
-        type=cli.image_height,
-        default=DEFAULT_HEIGHT,
-        help=f"overhead image height, pixels, 16..{MAX_RENDER_HEIGHT}",
-    )
+    cli.add_image_size_arguments(p, "overhead image", DEFAULT_WIDTH, DEFAULT_HEIGHT)
     args = p.parse_args(argv)
-    if args.scene != RANDOM_SCENE:
-        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
-            if value is not None:
-                raise cli.CommandLineError(
-                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
-                )
+    cli.check_scene_arguments(args)
     return args
 
 

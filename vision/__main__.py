@@ -19,8 +19,7 @@ import numpy as np
 
 from graspsim_base.files import atomic_path
 from hand_sim import clitools as cli
-from hand_sim.random_scene import MAX_RANDOM_BLOCKS
-from hand_sim.scene import RANDOM_SCENE, Scene, load_scene
+from hand_sim.scene import Scene, load_scene
 from vision.clitools import ERRORS, check_on_table, check_pixel
 from vision.errors import VisionError
 from vision.model import ObjectModel
@@ -80,19 +79,7 @@ def write_overlay(path: str | Path, obs: Observation, model: ObjectModel) -> Non
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     """Parse the command line; every number is checked here (finite, in range)."""
     p = cli.ArgumentParser(prog=PROG, description=cli.first_paragraph(__doc__))
-    p.add_argument("--scene", default="clutter3", help="scene name or .toml file (hand_sim.scene)")
-    p.add_argument(
-        "--seed",
-        type=cli.seed,
-        default=None,
-        help=f"seed of --scene random, 0..{cli.SEED_MAX} (default 0)",
-    )
-    p.add_argument(
-        "--blocks",
-        type=cli.integer(1, MAX_RANDOM_BLOCKS),
-        default=None,
-        help=f"blocks of --scene random, 1..{MAX_RANDOM_BLOCKS} (default 3)",
-    )
+    cli.add_scene_arguments(p, "scene name or .toml file (hand_sim.scene)", "blocks")
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument(
         "--pick-pixel",
@@ -107,18 +94,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="X,Y",
         help="a world point on the table (m): the block nearest to it, e.g. 0.1,-0.05",
     )
-    p.add_argument(
-        "--width",
-        type=cli.image_width,
-        default=DEFAULT_WIDTH,
-        help=f"rendered image width, pixels, 16..{DEFAULT_WIDTH}",
-    )
-    p.add_argument(
-        "--height",
-        type=cli.image_height,
-        default=DEFAULT_HEIGHT,
-        help=f"rendered image height, pixels, 16..{DEFAULT_HEIGHT}",
-    )
+    cli.add_image_size_arguments(p, "rendered image", DEFAULT_WIDTH, DEFAULT_HEIGHT)
     p.add_argument(
         "--overlay",
         type=cli.out_file(*OVERLAY_SUFFIXES),
@@ -126,12 +102,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help="write the image with the contour drawn (.png or .jpg)",
     )
     args = p.parse_args(argv)
-    if args.scene != RANDOM_SCENE:
-        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
-            if value is not None:
-                raise cli.CommandLineError(
-                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
-                )
+    cli.check_scene_arguments(args)
     if args.pick_pixel is not None:
         check_pixel(args.pick_pixel, args.width, args.height, "--pick-pixel")
     return args

@@ -261,20 +261,9 @@ def _run(argv: Sequence[str] | None) -> int:
         default=200,
         help=f"blocks per shape set, 1..{MAX_TRIALS}",
     )
-    p.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    cli.add_seed_argument(p)
     p.add_argument("--quick", action="store_true", help="at most 40 blocks per shape set")
-    p.add_argument(
-        "--width",
-        type=cli.image_width,
-        default=DEFAULT_WIDTH,
-        help=f"rendered image width, pixels, 16..{DEFAULT_WIDTH}",
-    )
-    p.add_argument(
-        "--height",
-        type=cli.image_height,
-        default=DEFAULT_HEIGHT,
-        help=f"rendered image height, pixels, 16..{DEFAULT_HEIGHT}",
-    )
+    cli.add_image_size_arguments(p, "rendered image", DEFAULT_WIDTH, DEFAULT_HEIGHT)
     p.add_argument(
         "--shapes",
         choices=["paper", "random", "both"],

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -48,6 +47,10 @@ MAX_TASK = 1e6
 LEARNED = ("ql", "pi", "pi9", "pi5")
 #: Errors the grasp commands report as bad input (one line, exit status 2).
 ERRORS: tuple[type[BaseException], ...] = (GraspError,)
+#: Argument types of a number of trials and of the gradient step (``--gain``), and its help.
+trials_type = cli.integer(1, MAX_TRIALS)
+gain_type = cli.number(0.0, MAX_GAIN, lo_open=True)
+GAIN_HELP = f"gradient step, rad per unit gradient, in (0, {MAX_GAIN:g}]"
 
 
 def _user_polygon(text: str, flag: str) -> tuple[np.ndarray, Polygon]:
@@ -172,24 +175,12 @@ def cmd_score(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> cli.ArgumentParser:
-    p = cli.ArgumentParser(
-        prog=PROG,
-        description="The grasp controller of Coelho & Grupen on planar polygons: grasp trials "
-        "and the S_G score of contact points (the paper's experiments: python -m "
-        "experiments.paper). "
-        "`python -m controllers.grasp COMMAND --help` shows a command's flags. Bad input is one "
-        "line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
+    p, sub = cli.command_parser(
+        PROG,
+        "The grasp controller of Coelho & Grupen on planar polygons: grasp trials and the S_G "
+        "score of contact points (the paper's experiments: python -m experiments.paper).",
     )
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    trials = cli.integer(1, MAX_TRIALS)
-    gain = cli.number(0.0, MAX_GAIN, lo_open=True)
-    gain_help = f"gradient step, rad per unit gradient, in (0, {MAX_GAIN:g}]"
-
-    t = sub.add_parser(
-        "trials",
-        help="run grasp trials on one object",
-        description="run grasp trials on one object",
-    )
+    t = cli.add_command(sub, "trials", "run grasp trials on one object")
     t.add_argument("--object", default="square", help=f"paper object: {', '.join(PAPER_OBJECTS)}")
     t.add_argument(
         "--polygon",
@@ -198,8 +189,10 @@ def build_parser() -> cli.ArgumentParser:
         'negative values as they are: --polygon "-1,-1;1,-1;0,1"',
     )
     t.add_argument("--controller", default="kb", help=f"composer: {', '.join(COMPOSERS)}")
-    t.add_argument("--trials", type=trials, default=200, help=f"number of trials, 1..{MAX_TRIALS}")
-    t.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
+    t.add_argument(
+        "--trials", type=trials_type, default=200, help=f"number of trials, 1..{MAX_TRIALS}"
+    )
+    cli.add_seed_argument(t)
     t.add_argument(
         "--contacts",
         type=cli.integer(2, MAX_CONTACTS),
@@ -219,7 +212,7 @@ def build_parser() -> cli.ArgumentParser:
         default=MAX_STEPS,
         help=f"control steps per trial, 1..{MAX_STEPS_LIMIT}",
     )
-    t.add_argument("--gain", type=gain, default=GAIN, help=gain_help)
+    t.add_argument("--gain", type=gain_type, default=GAIN, help=GAIN_HELP)
     t.add_argument(
         "--models",
         type=Path,
@@ -227,19 +220,10 @@ def build_parser() -> cli.ArgumentParser:
         help="folder of a finished `reproduce --out DIR` run whose models --controller "
         "ql|pi|pi9|pi5 use (default: the models shipped in the package)",
     )
-    t.add_argument(
-        "--json",
-        type=cli.out_file(".json"),
-        metavar="FILE",
-        help="write per-trial results and the summary here",
-    )
+    cli.add_json_argument(t, "write per-trial results and the summary here")
     t.set_defaults(func=cmd_trials)
 
-    s = sub.add_parser(
-        "score",
-        help="grasp score S_G (Eq. 13) of contact points on a polygon",
-        description="grasp score S_G (Eq. 13) of contact points on a polygon",
-    )
+    s = cli.add_command(sub, "score", "grasp score S_G (Eq. 13) of contact points on a polygon")
     s.add_argument(
         "--polygon", required=True, metavar="X,Y;X,Y;...", help="convex polygon, any unit"
     )
@@ -252,23 +236,12 @@ def build_parser() -> cli.ArgumentParser:
         metavar="FX,FY,MZ",
         help="task wrench in the unit-moment frame (default: the null grasp, 0,0,0)",
     )
-    s.add_argument(
-        "--json",
-        type=cli.out_file(".json"),
-        metavar="FILE",
-        help="write the result to this JSON file",
-    )
+    cli.add_json_argument(s, "write the result to this JSON file")
     s.set_defaults(func=cmd_score)
 
     return p
 
 
-def _run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
-    args.argv = " ".join(sys.argv[1:] if argv is None else argv)
-    return int(args.func(args))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    return cli.run_main(lambda: _run(argv), prog=PROG, errors=ERRORS)
+    return cli.run_command(build_parser, argv, prog=PROG, errors=ERRORS)

@@ -47,6 +47,12 @@ def _save(fig: Any, path: Path) -> None:
         fig.savefig(tmp, format="png")
 
 
+def _no_data(ax: Any, text: str) -> None:
+    """An empty plot: ``text`` in the middle, no axes."""
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
+    ax.set_axis_off()
+
+
 def _pct(x: float) -> str:
     return f"{100.0 * x:.1f} %"
 
@@ -85,8 +91,7 @@ def plot_failures(s: BenchSummary, path: Path) -> None:
         ax.set_xlabel("episodes")
         ax.xaxis.get_major_locator().set_params(integer=True)
     else:
-        ax.text(0.5, 0.5, "no failed episode", ha="center", va="center", transform=ax.transAxes)
-        ax.set_axis_off()
+        _no_data(ax, "no failed episode")
     ax.set_title(f"Failure reasons ({s.episodes - s.successes} of {s.episodes} episodes)")
     _save(fig, path)
 
@@ -108,10 +113,7 @@ def plot_place_error(s: BenchSummary, path: Path) -> None:
         ax.set_xlabel("place error (mm)")
         ax.set_ylabel("deliveries")
     else:
-        ax.text(
-            0.5, 0.5, "no delivery was judged", ha="center", va="center", transform=ax.transAxes
-        )
-        ax.set_axis_off()
+        _no_data(ax, "no delivery was judged")
     ax.set_title(f"Place error of the judged deliveries (n = {len(s.place_error_mm)})")
     _save(fig, path)
 

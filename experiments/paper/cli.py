@@ -14,7 +14,15 @@ import sys
 import time
 from collections.abc import Sequence
 
-from controllers.grasp.cli import ERRORS, MAX_GAIN, MAX_TRIALS, prepare_json, write_json
+from controllers.grasp.cli import (
+    ERRORS,
+    GAIN_HELP,
+    MAX_TRIALS,
+    gain_type,
+    prepare_json,
+    trials_type,
+    write_json,
+)
 from controllers.grasp.objects import FAMILY_OBJECTS, FAMILY_SIZE, PAPER_LABELS
 from controllers.grasp.trials import GAIN
 from experiments.paper.tables import (
@@ -94,39 +102,25 @@ def seed_list(text: str) -> tuple[int, ...]:
 
 
 def build_parser() -> cli.ArgumentParser:
-    p = cli.ArgumentParser(
-        prog=PROG,
-        description="The paper's experiments on the grasp core: Table 1's knowledge-based "
-        "column, and every experiment of the paper over several seeds. "
-        "`python -m experiments.paper COMMAND --help` shows a command's flags. Bad input is one "
-        "line on stderr and exit status 2; Ctrl-C stops with exit status 130.",
+    p, sub = cli.command_parser(
+        PROG,
+        "The paper's experiments on the grasp core: Table 1's knowledge-based column, and every "
+        "experiment of the paper over several seeds.",
     )
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    trials = cli.integer(1, MAX_TRIALS)
-    gain = cli.number(0.0, MAX_GAIN, lo_open=True)
-    gain_help = f"gradient step, rad per unit gradient, in (0, {MAX_GAIN:g}]"
-    tb = sub.add_parser(
-        "table1",
-        help="knowledge-based column of Table 1 beside the paper's",
-        description="knowledge-based column of Table 1 beside the paper's",
-    )
+    tb = cli.add_command(sub, "table1", "knowledge-based column of Table 1 beside the paper's")
     tb.add_argument(
-        "--trials", type=trials, default=200, help=f"trials per object, 1..{MAX_TRIALS}"
+        "--trials", type=trials_type, default=200, help=f"trials per object, 1..{MAX_TRIALS}"
     )
-    tb.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
-    tb.add_argument("--gain", type=gain, default=GAIN, help=gain_help)
-    tb.add_argument(
-        "--json",
-        type=cli.out_file(".json"),
-        metavar="FILE",
-        help="write the rows to this JSON file",
-    )
+    cli.add_seed_argument(tb)
+    tb.add_argument("--gain", type=gain_type, default=GAIN, help=GAIN_HELP)
+    cli.add_json_argument(tb, "write the rows to this JSON file")
     tb.set_defaults(func=cmd_table1)
 
-    r = sub.add_parser(
+    r = cli.add_command(
+        sub,
         "reproduce",
-        help="train and test every learned controller; write report, figures, models",
-        description="Every experiment of the paper (Tables 1-2, the noise readings, section 2, "
+        "train and test every learned controller; write report, figures, models",
+        "Every experiment of the paper (Tables 1-2, the noise readings, section 2, "
         "Appendix A, figures) and PI on held-out polygons, over several seeds: train and test "
         "every learned controller and write report.md, results.json, the figures and the "
         "trained models into --out. About 13 CPU-minutes: 7 minutes on 2 idle cores "
@@ -150,25 +144,14 @@ def build_parser() -> cli.ArgumentParser:
         help=f"seeds, 0..{cli.SEED_MAX}; tables are mean +- sd over them "
         "(default 0,1,2; with --quick 0)",
     )
-    r.add_argument(
-        "--workers",
-        type=cli.integer(1, MAX_WORKERS),
-        default=2,
-        help=f"worker processes, 1..{MAX_WORKERS}",
-    )
+    cli.add_workers_argument(r, MAX_WORKERS)
     r.set_defaults(func=cmd_reproduce)
     return p
 
 
-def _run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
-    args.argv = " ".join(sys.argv[1:] if argv is None else argv)
-    return int(args.func(args))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    return cli.run_main(lambda: _run(argv), prog=PROG, errors=ERRORS)
+    return cli.run_command(build_parser, argv, prog=PROG, errors=ERRORS)
 
 
 def reproduce_main(argv: Sequence[str] | None = None) -> int:

@@ -91,23 +91,12 @@ def build_parser() -> cli.ArgumentParser:
         metavar="N",
         help="grasps per object and controller, 1..10000 (default 50; with --quick 4)",
     )
-    ph.add_argument("--seed", type=cli.seed, default=0, help=f"random seed, 0..{cli.SEED_MAX}")
-    ph.add_argument(
-        "--workers",
-        type=cli.integer(1, MAX_WORKERS),
-        default=2,
-        help=f"worker processes, 1..{MAX_WORKERS}",
-    )
+    cli.add_seed_argument(ph)
+    cli.add_workers_argument(ph, MAX_WORKERS)
     ph.add_argument("--quick", action="store_true", help="two objects, 4 grasps each (tests)")
     return ph
 
 
-def _run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
-    args.argv = " ".join(sys.argv[1:] if argv is None else argv)
-    return run(args)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    return cli.run_main(lambda: _run(argv), prog=PROG, errors=ERRORS)
+    return cli.run_command(build_parser, argv, prog=PROG, errors=ERRORS, command=run)

@@ -10,6 +10,7 @@ from controllers.planning_model import planning_model
 from controllers.reach import ReachTarget
 from fsm.context import Episode
 from fsm.perception import choose_block, other_footprints, perceive, place_for_cycle
+from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim.blocks import WOOD_DENSITY
 from hand_sim.robot import STANDARD_GRAVITY
@@ -70,12 +71,14 @@ def select_model(ep: Episode) -> Step:
     }
     ep.recorder.set_target(name)
     ep.recorder.log_vision(
-        ep.selection.observation.rgb,
-        ep.selection.observation.geometry.K,
-        ep.selection.observation.geometry.cam_to_world,
-        model.world_vertices,
-        model.pixel_contour,
-        float(model.centroid[2]),
+        VisionView(
+            ep.selection.observation.rgb,
+            ep.selection.observation.geometry.K,
+            ep.selection.observation.geometry.cam_to_world,
+            model.world_vertices,
+            model.pixel_contour,
+            float(model.centroid[2]),
+        )
     )
     return Step(
         State.COARSE_REACH,

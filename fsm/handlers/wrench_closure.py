@@ -10,6 +10,7 @@ from controllers.grasp.session import GraspSynthesis
 from controllers.hand_reach import CONTACT_SEPARATION, MIN_PAD_SPACING, reachable_contacts
 from fsm.context import Episode
 from fsm.handlers.common import contact_points, reach_query
+from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
 
@@ -38,11 +39,13 @@ def wrench_closure(ep: Episode) -> Step:
             step = syn.step()
             record.synthesis_steps = syn.steps
             ep.recorder.log_synthesis(
-                step.step,
-                step.eps_fc,
-                step.eps_mc,
-                step.predicted_failure,
-                contact_points(ep, syn.theta),
+                SynthesisRecord(
+                    step.step,
+                    step.eps_fc,
+                    step.eps_mc,
+                    step.predicted_failure,
+                    contact_points(ep, syn.theta),
+                )
             )
             if syn.steps % ep.config.reach_check_every and not syn.done:
                 continue

@@ -19,6 +19,7 @@ from controllers.cspace import CollisionChecker
 from controllers.grip import move_hand
 from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from controllers.transport import move_palm
+from fsm.recorder_protocol import SynthesisRecord, VisionView
 from fsm.recording import FORCE_ARROW_SCALE, EpisodeRecorder
 from hand_sim import robot
 from hand_sim.camera import OverheadCamera
@@ -89,15 +90,17 @@ def test_episode_entities_timelines_and_layout(tmp_path: Path, world: World) -> 
         world.on_step = rec.tick
         rec.log_transition("Start", "Select/Model", f"pick {target}")
         run_for(world, 0.3)
-        rec.log_vision(vision_rgb, K, pose, polygon, contour, z_top)
+        rec.log_vision(VisionView(vision_rgb, K, pose, polygon, contour, z_top))
         t_synthesis = world.time
         for k in range(1, 6):  # a kb run: no predictor
-            rec.log_synthesis(k, 0.5 / k, 0.2 / k, None, contacts)
+            rec.log_synthesis(SynthesisRecord(k, 0.5 / k, 0.2 / k, None, contacts))
         rec.log_reachability(1, False, "ff cannot reach c2")
         run_for(world, 0.1)
         for k in range(1, 4):  # a pi run after Posture Control: the step count restarts
             rec.log_synthesis(
-                k, 0.1, 0.05, k == 2, contacts + 0.001 * k, s_g=0.3 if k == 3 else None
+                SynthesisRecord(
+                    k, 0.1, 0.05, k == 2, contacts + 0.001 * k, s_g=0.3 if k == 3 else None
+                )
             )
         rec.log_reachability(2, True, "all four contacts reachable")
         rec.log_verdict(True, "delivered")
@@ -338,15 +341,15 @@ def test_bad_input_is_refused(tmp_path: Path, world: World) -> None:
         rgb = np.zeros((48, 64, 3), np.uint8)
         square = np.array([[0.0, 0.0], [0.05, 0.0], [0.05, 0.05], [0.0, 0.05]])
         with pytest.raises(HandSimError, match=r"K \(3, 3\) and pose \(4, 4\)"):
-            rec.log_vision(rgb, np.eye(4), np.eye(4), square, square, 0.95)
+            rec.log_vision(VisionView(rgb, np.eye(4), np.eye(4), square, square, 0.95))
         with pytest.raises(HandSimError, match="polygon_world must be a finite"):
-            rec.log_vision(rgb, np.eye(3), np.eye(4), square[:2], square, 0.95)
+            rec.log_vision(VisionView(rgb, np.eye(3), np.eye(4), square[:2], square, 0.95))
         with pytest.raises(HandSimError, match=r"\(H, W, 3\) uint8"):
-            rec.log_vision(rgb[..., 0], np.eye(3), np.eye(4), square, square, 0.95)
+            rec.log_vision(VisionView(rgb[..., 0], np.eye(3), np.eye(4), square, square, 0.95))
         with pytest.raises(HandSimError, match="contacts_world must be a finite"):
-            rec.log_synthesis(1, 0.1, 0.1, None, square)
+            rec.log_synthesis(SynthesisRecord(1, 0.1, 0.1, None, square))
         with pytest.raises(HandSimError, match="non-finite"):
-            rec.log_synthesis(1, float("nan"), 0.1, None, np.zeros((4, 3)))
+            rec.log_synthesis(SynthesisRecord(1, float("nan"), 0.1, None, np.zeros((4, 3))))
         with pytest.raises(HandSimError, match="unknown event level 'LOUD'"):
             rec.log_transition("A", "B", "why", level="LOUD")
         with pytest.raises(SceneError, match="nope"):
