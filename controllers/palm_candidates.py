@@ -73,6 +73,25 @@ DEFAULT_PALM_POSE = PalmPoseParams()
 
 
 @dataclass(frozen=True, eq=False)
+class PoseSetting:
+    """Where palm poses are sought: the world as it is now, the planning model (the perceived
+    block in place of the simulated one), the perceived target, and the palm rotation at the
+    coarse reach's goal (``coarse_rotation``, 3x3)."""
+
+    world: World
+    planning: mujoco.MjModel
+    target: ReachTarget
+    coarse_rotation: NDArray[np.float64]
+
+    def arm_start(self) -> tuple[NDArray[np.int64], CollisionChecker, NDArray[np.float64]]:
+        """The arm's qpos addresses, a collision checker on the planning model, and the arm's
+        present joint angles (the IK's start)."""
+        arm_adr = robot.arm_qpos_addresses(self.world.model)
+        checker = CollisionChecker(self.world, model=self.planning)
+        return arm_adr, checker, self.world.data.qpos[arm_adr].copy()
+
+
+@dataclass(frozen=True, eq=False)
 class PalmPose:
     """A palm pose a Posture Control search tries (:func:`controllers.palm_pose.search_poses`):
     the configuration (qpos), its group (poses are tried group by group, in order: a lateral
@@ -97,23 +116,15 @@ def turn_about_vertical(angle: float) -> NDArray[np.float64]:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def lateral_poses(
-    world: World,
-    planning: mujoco.MjModel,
-    target: ReachTarget,
-    coarse_rotation: NDArray[np.float64],
-    params: PalmPoseParams = DEFAULT_PALM_POSE,
-) -> list[PalmPose]:
+def lateral_poses(where: PoseSetting, params: PalmPoseParams = DEFAULT_PALM_POSE) -> list[PalmPose]:
     """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
     has five joints), hand y up as the coarse reach put it (``coarse_rotation``, its goal palm
     rotation), turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the
     block's nearest point along the axis, at the coarse reach's height, ``lateral_shifts``
     aside; in order of the gap. The hand takes the pinch pre-shape."""
-    m = world.model
-    hand_adr = robot.hand_qpos_addresses(m)
-    arm_adr = robot.arm_qpos_addresses(m)
-    checker = CollisionChecker(world, model=planning)
-    q_arm = world.data.qpos[arm_adr]
+    world, target, coarse_rotation = where.world, where.target, where.coarse_rotation
+    hand_adr = robot.hand_qpos_addresses(world.model)
+    arm_adr, checker, q_arm = where.arm_start()
     base = np.asarray(robot_base_xy(world))
     centre = np.array([*target.position_xy, target.top_z - LATERAL_DEPTH])
     axis = np.array([*(centre[:2] - base), 0.0])
@@ -144,22 +155,15 @@ def lateral_poses(
     return poses
 
 
-def top_poses(
-    world: World,
-    planning: mujoco.MjModel,
-    target: ReachTarget,
-    coarse_rotation: NDArray[np.float64],
-    params: PalmPoseParams = DEFAULT_PALM_POSE,
-) -> list[PalmPose]:
+def top_poses(where: PoseSetting, params: PalmPoseParams = DEFAULT_PALM_POSE) -> list[PalmPose]:
     """Palm poses above the perceived block for a top grasp's Posture Control: the palm level
     (the coarse reach's orientation, ``coarse_rotation``) at its present height, turned
     ``top_rolls`` about the vertical through the block's centroid, first where it is (``group``
     0), then ``top_shift`` aside (``group`` 1); the hand in its present shape."""
+    world, target, coarse_rotation = where.world, where.target, where.coarse_rotation
     m = world.model
-    checker = CollisionChecker(world, model=planning)
-    arm_adr = robot.arm_qpos_addresses(m)
     lo, hi = m.jnt_range[m.joint(robot.qualified("wrist_roll")).id]
-    q_arm = world.data.qpos[arm_adr]
+    arm_adr, checker, q_arm = where.arm_start()
     p, _ = checker.palm_pose(q_arm)
     centre = np.asarray(target.position_xy, dtype=float)
     shifts = [(0, np.zeros(2))] + [

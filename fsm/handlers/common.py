@@ -13,7 +13,13 @@ from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
 from controllers.grasp.session import separate_contacts
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
-from controllers.palm_candidates import PalmPose, lateral_poses, robot_base_xy, side_contacts
+from controllers.palm_candidates import (
+    PalmPose,
+    PoseSetting,
+    lateral_poses,
+    robot_base_xy,
+    side_contacts,
+)
 from controllers.palm_pose import ReachQuery, search_poses
 from fsm.context import Episode
 from hand_sim import robot
@@ -104,7 +110,8 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
             robot.PAD_RADIUS,
         )
 
-    poses = lateral_poses(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation, params)
+    where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
+    poses = lateral_poses(where, params)
     found = search_poses(
         reach_query(ep, sampled=True),
         poses,

@@ -12,7 +12,7 @@ from controllers.cspace import CollisionChecker
 from controllers.grip import PRE_CONTACT
 from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, reachable_contacts
 from controllers.motion import approach, reposition
-from controllers.palm_candidates import PalmPose, lateral_poses, roll_seeds, top_poses
+from controllers.palm_candidates import PalmPose, PoseSetting, lateral_poses, roll_seeds, top_poses
 from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds
 from controllers.planning_model import PERCEIVED_GEOM
 from controllers.posture import apply_posture, solve_posture
@@ -89,8 +89,9 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     0-29 (3-5 blocks, pi) the palm-pose search took the episodes delivered from 25 to 26."""
     params = ep.config.palm_pose
     rotation = ep.coarse.goal.palm_rotation
+    where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
     if slides(ep):
-        return _posture_among(ep, lateral_poses(ep.world, ep.planning, ep.target, rotation, params))
+        return _posture_among(ep, lateral_poses(where, params))
     query = reach_query(ep)
     theta = ep.synthesis.theta
 
@@ -117,7 +118,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
         return found
     # the arm's differential IK from the roll seeds found nothing: search palm poses above the
     # block, the fingers' IK starting from sampled postures (as a lateral grasp does)
-    return _posture_among(ep, top_poses(ep.world, ep.planning, ep.target, rotation, params))
+    return _posture_among(ep, top_poses(where, params))
 
 
 def _posture_among(ep: Episode, poses: list[PalmPose]) -> PalmPoseResult:
