@@ -18,7 +18,9 @@ from controllers.grasp.objects import (
     regular_polygon,
 )
 from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts
+from controllers.grasp.prism3d import physical_tasks, prism_contacts, worst_task_score
 from controllers.grasp.score import SUCCESS_THRESHOLD, GraspScore, grasp_score
+from controllers.grasp.score3d import ContactError, GraspScore3D, grasp_score_3d
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import PolygonBatch, TrialBatch, run_trials
 
@@ -26,10 +28,12 @@ __all__ = [
     "PAPER_OBJECTS",
     "SUCCESS_THRESHOLD",
     "Composer",
+    "ContactError",
     "ContactFrames",
     "ControlState",
     "GraspError",
     "GraspScore",
+    "GraspScore3D",
     "KnowledgeBased",
     "ModelNotTrainedError",
     "Polygon",
@@ -38,10 +42,14 @@ __all__ = [
     "TrialBatch",
     "UnknownNameError",
     "grasp_score",
+    "grasp_score_3d",
     "locate_contacts",
     "luce_activation",
     "paper_object",
+    "physical_tasks",
+    "prism_contacts",
     "random_convex_polygon",
     "regular_polygon",
     "run_trials",
+    "worst_task_score",
 ]
