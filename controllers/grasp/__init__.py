@@ -18,6 +18,7 @@ from controllers.grasp.objects import (
     regular_polygon,
 )
 from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts
+from controllers.grasp.prism import ContactFrames3D, Prism, locate_contacts_3d
 from controllers.grasp.score import SUCCESS_THRESHOLD, GraspScore, grasp_score
 from controllers.grasp.state import ControlState
 from controllers.grasp.trials import PolygonBatch, TrialBatch, run_trials
@@ -27,6 +28,7 @@ __all__ = [
     "SUCCESS_THRESHOLD",
     "Composer",
     "ContactFrames",
+    "ContactFrames3D",
     "ControlState",
     "GraspError",
     "GraspScore",
@@ -35,10 +37,12 @@ __all__ = [
     "Polygon",
     "PolygonBatch",
     "PolygonError",
+    "Prism",
     "TrialBatch",
     "UnknownNameError",
     "grasp_score",
     "locate_contacts",
+    "locate_contacts_3d",
     "luce_activation",
     "paper_object",
     "random_convex_polygon",
