@@ -18,6 +18,7 @@ from controllers.grasp.objects import (
     regular_polygon,
 )
 from controllers.grasp.polygon import ContactFrames, Polygon, locate_contacts
+from controllers.grasp.prism import ContactFrames3D, Prism, locate_contacts_3d
 from controllers.grasp.prism3d import physical_tasks, prism_contacts, worst_task_score
 from controllers.grasp.score import SUCCESS_THRESHOLD, GraspScore, grasp_score
 from controllers.grasp.score3d import ContactError, GraspScore3D, grasp_score_3d
@@ -30,6 +31,7 @@ __all__ = [
     "Composer",
     "ContactError",
     "ContactFrames",
+    "ContactFrames3D",
     "ControlState",
     "GraspError",
     "GraspScore",
@@ -39,11 +41,13 @@ __all__ = [
     "Polygon",
     "PolygonBatch",
     "PolygonError",
+    "Prism",
     "TrialBatch",
     "UnknownNameError",
     "grasp_score",
     "grasp_score_3d",
     "locate_contacts",
+    "locate_contacts_3d",
     "luce_activation",
     "paper_object",
     "physical_tasks",
