@@ -39,7 +39,8 @@ class GraspScore:
         return self.feasible and self.s_g <= SUCCESS_THRESHOLD
 
 
-def _settings() -> clarabel.DefaultSettings:
+def solver_settings() -> clarabel.DefaultSettings:
+    """clarabel's default settings, silent."""
     s = clarabel.DefaultSettings()
     s.verbose = False
     return s
@@ -85,7 +86,9 @@ def grasp_score(
     b = np.concatenate([t, -MIN_NORMAL_FORCE * np.ones(n), np.zeros(3 * n)])
     q = np.concatenate([np.ones(n), np.zeros(n), np.ones(n)])
     cones = [clarabel.ZeroConeT(3), clarabel.NonnegativeConeT(4 * n)]
-    solver = clarabel.DefaultSolver(sp.csc_matrix((3 * n, 3 * n)), q, a, b, cones, _settings())
+    solver = clarabel.DefaultSolver(
+        sp.csc_matrix((3 * n, 3 * n)), q, a, b, cones, solver_settings()
+    )
     sol = solver.solve()
     status = str(sol.status).rsplit(".", 1)[-1]
     x = np.asarray(sol.x)

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.errors import GraspError
-from controllers.grasp.score import FRICTION, MIN_NORMAL_FORCE, SUCCESS_THRESHOLD
+from controllers.grasp.score import FRICTION, MIN_NORMAL_FORCE, SUCCESS_THRESHOLD, solver_settings
 
 #: A normal is a unit vector when its length is within this of 1.
 UNIT_TOLERANCE = 1e-6
@@ -154,12 +154,6 @@ def _check_coefficient(name: str, value: float | None, allow_none: bool) -> None
         raise ContactError(f"{name} must be a finite number >= 0, got {value!r}")
 
 
-def _settings() -> clarabel.DefaultSettings:
-    s = clarabel.DefaultSettings()
-    s.verbose = False
-    return s
-
-
 def grasp_score_3d(
     points: ArrayLike,
     normals: ArrayLike,
@@ -225,7 +219,7 @@ def grasp_score_3d(
     cones = [clarabel.ZeroConeT(6), clarabel.NonnegativeConeT(n_nonneg)]
     cones += [clarabel.SecondOrderConeT(3)] * (2 * n)
     solver = clarabel.DefaultSolver(
-        sp.csc_matrix((nv, nv)), q, a, np.concatenate(b), cones, _settings()
+        sp.csc_matrix((nv, nv)), q, a, np.concatenate(b), cones, solver_settings()
     )
     sol = solver.solve()
     status = str(sol.status).rsplit(".", 1)[-1]
