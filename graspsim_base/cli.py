@@ -175,21 +175,23 @@ def number(
 
 
 def numbers(
-    count: int, form: str, lo: float = -math.inf, hi: float = math.inf
+    count: int | tuple[int, ...], form: str, lo: float = -math.inf, hi: float = math.inf
 ) -> Callable[[str], tuple[float, ...]]:
-    """Argument type: ``count`` comma-separated finite numbers, each in [lo, hi] (``form`` is how
-    the message shows them, e.g. ``'U,V'``)."""
+    """Argument type: ``count`` comma-separated finite numbers (or any of several counts), each in
+    [lo, hi] (``form`` is how the message shows them, e.g. ``'U,V'``)."""
+    counts = (count,) if isinstance(count, int) else tuple(count)
+    how_many = " or ".join(str(c) for c in counts)
 
     def parse(text: str) -> tuple[float, ...]:
         try:
             values = tuple(float(c) for c in text.split(","))
         except ValueError:
             values = ()
-        ok = len(values) == count and all(math.isfinite(v) and lo <= v <= hi for v in values)
+        ok = len(values) in counts and all(math.isfinite(v) and lo <= v <= hi for v in values)
         if not ok:
             bound = "" if math.isinf(lo) and math.isinf(hi) else f" in [{lo:g}, {hi:g}]"
             raise argparse.ArgumentTypeError(
-                f"must be {count} finite numbers{bound} written {form!r}, got {text!r}"
+                f"must be {how_many} finite numbers{bound} written {form!r}, got {text!r}"
             )
         return values
 

@@ -16,10 +16,12 @@ import numpy as np
 
 from controllers.grasp.errors import GraspError, PolygonError
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
-from controllers.grasp.polygon import Polygon, centroid_of, parse_points
+from controllers.grasp.polygon import MAX_COORDINATE, Polygon, centroid_of, parse_points
+from controllers.grasp.prism3d import prism_contacts
 from controllers.grasp.registry import COMPOSERS, make_composer
 from controllers.grasp.run_folder import check_finished_run
-from controllers.grasp.score import grasp_score
+from controllers.grasp.score import GraspScore, grasp_score
+from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.trials import (
     GAIN,
     MAX_STEPS,
@@ -139,23 +141,8 @@ def cmd_trials(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_score(args: argparse.Namespace) -> int:
-    raw, poly = _user_polygon(args.polygon, "--polygon")
-    centroid = centroid_of(raw)
-    points = parse_points(args.points, what="--points") - centroid
-    on, edge, off = poly.nearest_on_outline(points)
-    bad = np.flatnonzero(off > ON_BOUNDARY_TOLERANCE * poly.diameter)
-    if bad.size:
-        i = int(bad[0])
-        raise PolygonError(
-            f"--points: point {i} {tuple(float(c) for c in points[i] + centroid)} "
-            f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
-        )
-    prepare_json(args)
-    scale = 1.0 / poly.max_moment
-    task = None if args.task is None else list(args.task)
-    normals = np.stack([np.cos(poly.normal_angle[edge]), np.sin(poly.normal_angle[edge])], axis=1)
-    score = grasp_score(on * scale, normals, task)
+def _report_score(args: argparse.Namespace, score: GraspScore | GraspScore3D) -> int:
+    """Print S_G and its verdict; write the ``--json`` file."""
     if score.feasible:
         shown = round(score.s_g, 4) + 0.0  # + 0.0: the LP's -1e-12 prints as 0.0000, not -0.0000
         print(f"S_G = {shown:.4f} ({'success' if score.success else 'failure'}: threshold 0.4)")
@@ -172,6 +159,69 @@ def cmd_score(args: argparse.Namespace) -> int:
         },
     )
     return 0
+
+
+def _score_3d(args: argparse.Namespace, raw: np.ndarray, poly: Polygon, points: np.ndarray) -> int:
+    """``score`` with points x,y,z: contacts on the prism of ``--polygon`` extruded to
+    ``--height`` (z above its base; a point with z = H on the top face), scored by the 3-D S_G
+    (Eq. 13 with 6-D wrenches, :mod:`controllers.grasp.score3d`) in the unit-moment frame."""
+    if args.height is None:
+        raise PolygonError(
+            "--height: points with three numbers need the prism's height (--height H)"
+        )
+    task = args.task
+    if task is not None and len(task) != 6:
+        raise PolygonError("--task: the 3-D model takes 6 numbers FX,FY,FZ,MX,MY,MZ")
+    h, tol = args.height, ON_BOUNDARY_TOLERANCE * poly.diameter
+    xy = points[:, :2] - centroid_of(raw)
+    z = points[:, 2]
+    on, _, off = poly.nearest_on_outline(xy)
+    inside = np.all(xy @ _edge_normals(poly).T - poly.offset[None, :] <= tol, axis=1)
+    top = (np.abs(z - h) <= tol) & inside
+    side = ~top & (off <= tol) & (z >= -tol) & (z <= h + tol)
+    bad = np.flatnonzero(~(top | side))
+    if bad.size:
+        i = int(bad[0])
+        raise PolygonError(
+            f"--points: point {i} {tuple(float(c) for c in points[i])} is not on the prism's "
+            f"sides (on the outline, 0 <= z <= {h:g}) or top face (inside, z = {h:g})"
+        )
+    prepare_json(args)
+    theta = np.array([poly.theta_of(p) for p in on[side]])
+    p3, n3 = prism_contacts(poly, theta, np.clip(z[side], 0.0, h), h, top=xy[top], unit_moment=True)
+    order = np.concatenate([np.flatnonzero(side), np.flatnonzero(top)])
+    p3[order], n3[order] = p3.copy(), n3.copy()
+    return _report_score(args, grasp_score_3d(p3, n3, task))
+
+
+def _edge_normals(poly: Polygon) -> np.ndarray:
+    return np.stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)], axis=1)
+
+
+def cmd_score(args: argparse.Namespace) -> int:
+    raw, poly = _user_polygon(args.polygon, "--polygon")
+    centroid = centroid_of(raw)
+    points = parse_points(args.points, what="--points", dims=(2, 3))
+    if points.shape[1] == 3:
+        return _score_3d(args, raw, poly, points)
+    if args.height is not None:
+        raise PolygonError("--height: applies to points with three numbers (x,y,z) only")
+    if args.task is not None and len(args.task) != 3:
+        raise PolygonError("--task: points with two numbers take 3 numbers FX,FY,MZ")
+    points = points - centroid
+    on, edge, off = poly.nearest_on_outline(points)
+    bad = np.flatnonzero(off > ON_BOUNDARY_TOLERANCE * poly.diameter)
+    if bad.size:
+        i = int(bad[0])
+        raise PolygonError(
+            f"--points: point {i} {tuple(float(c) for c in points[i] + centroid)} "
+            f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
+        )
+    prepare_json(args)
+    scale = 1.0 / poly.max_moment
+    task = None if args.task is None else list(args.task)
+    normals = _edge_normals(poly)[edge]
+    return _report_score(args, grasp_score(on * scale, normals, task))
 
 
 def build_parser() -> cli.ArgumentParser:
@@ -228,13 +278,24 @@ def build_parser() -> cli.ArgumentParser:
         "--polygon", required=True, metavar="X,Y;X,Y;...", help="convex polygon, any unit"
     )
     s.add_argument(
-        "--points", required=True, metavar="X,Y;X,Y;...", help="contact points on its outline"
+        "--points",
+        required=True,
+        metavar="X,Y;X,Y;...",
+        help="contact points on its outline; three numbers a point (X,Y,Z;...) select the 3-D "
+        "model: contacts on the prism of --height H, Z above its base, Z = H on the top face",
+    )
+    s.add_argument(
+        "--height",
+        type=cli.number(0.0, MAX_COORDINATE, lo_open=True),
+        metavar="H",
+        help="prism height, the polygon's unit (3-D points only)",
     )
     s.add_argument(
         "--task",
-        type=cli.numbers(3, "FX,FY,MZ", -MAX_TASK, MAX_TASK),
+        type=cli.numbers((3, 6), "FX,FY,MZ or FX,FY,FZ,MX,MY,MZ", -MAX_TASK, MAX_TASK),
         metavar="FX,FY,MZ",
-        help="task wrench in the unit-moment frame (default: the null grasp, 0,0,0)",
+        help="task wrench in the unit-moment frame (3-D points: FX,FY,FZ,MX,MY,MZ, moments "
+        "about the centre of mass; default: the null grasp)",
     )
     cli.add_json_argument(s, "write the result to this JSON file")
     s.set_defaults(func=cmd_score)

@@ -342,17 +342,25 @@ def _wrap(angle: ArrayLike) -> NDArray[np.float64]:
 wrap_angle = _wrap
 
 
-def parse_points(text: str, what: str = "polygon") -> NDArray[np.float64]:
-    """Parse ``"x,y;x,y;..."`` (the CLI's polygon and point format) into an (k, 2) array."""
+def parse_points(
+    text: str, what: str = "polygon", dims: tuple[int, ...] = (2,)
+) -> NDArray[np.float64]:
+    """Parse ``"x,y;x,y;..."`` (the CLI's polygon and point format) into an (k, 2) array; with
+    ``dims=(2, 3)`` every point may instead have three numbers (``"x,y,z;..."``, (k, 3))."""
     try:
         rows = [
             tuple(float(c) for c in part.split(",")) for part in text.strip().strip(";").split(";")
         ]
     except ValueError as e:
         raise PolygonError(f"{what} must be written 'x,y;x,y;...', got {_short(text)}") from e
-    if any(len(r) != 2 for r in rows):
+    if dims == (2,) and any(len(r) != 2 for r in rows):
         raise PolygonError(
             f"{what} must be written 'x,y;x,y;...' (two numbers per point), got {_short(text)}"
+        )
+    if len({len(r) for r in rows}) != 1 or len(rows[0]) not in dims:
+        raise PolygonError(
+            f"{what} must be written 'x,y;x,y;...' or 'x,y,z;x,y,z;...' (the same two or three "
+            f"numbers per point), got {_short(text)}"
         )
     points = np.array(rows, dtype=float)
     if not np.all(np.isfinite(points)) or np.abs(points).max() > MAX_COORDINATE:

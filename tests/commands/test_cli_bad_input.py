@@ -116,7 +116,20 @@ GRASP_CASES = [
     (["trials", "--bogus"], "unrecognized arguments: --bogus"),
     # score
     (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--task", "nan,0,0"], "argument --task"),
-    (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--task", "1,2"], "3 finite numbers"),
+    (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--task", "1,2"], "3 or 6 finite"),
+    # score, 3-D points (x,y,z on the prism of --height)
+    (["score", "--polygon", SQUARE, "--points", "1,0,0.5"], "--height: points with three"),
+    (["score", "--polygon", SQUARE, "--points", "1,0", "--height", "1"], "--height: applies to"),
+    (["score", "--polygon", SQUARE, "--points", "1,0,2", "--height", "1"], "not on the prism's"),
+    (["score", "--polygon", SQUARE, "--points", "1,1,0", "--height", "1"], "not on the prism's"),
+    (["score", "--polygon", SQUARE, "--points", "1,0,1", "--height", "0"], "argument --height"),
+    (["score", "--polygon", SQUARE, "--points", "1,0,1", "--height", "nan"], "argument --height"),
+    (["score", "--polygon", SQUARE, "--points", "1,0;1,0,1"], "the same two or three numbers"),
+    (["score", "--polygon", SQUARE, "--points", "1,0", "--task", "1,2,3,4,5,6"], "take 3 numbers"),
+    (
+        ["score", "--polygon", SQUARE, "--points", "1,0,1", "--height", "2", "--task", "0,0,1"],
+        "the 3-D model takes 6 numbers",
+    ),
     (["score", "--polygon", SQUARE, "--points", "2,1;0,1", "--task", "1e9,0,0"], "[-1e+06, 1e+06]"),
     (["score", "--polygon", SQUARE, "--points", "nan,nan;0,1"], "--points: coordinates must be"),
     (["score", "--polygon", SQUARE, "--points", "1,1;2,1"], "--points: point 0 (1.0, 1.0) is"),

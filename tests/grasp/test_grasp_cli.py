@@ -120,3 +120,61 @@ def test_score_cli_agrees_with_the_library_on_and_near_the_outline(tmp_path):
             checked += 1
             break
     assert checked >= 4
+
+
+def _score_result(tmp_path, name: str, *args: str) -> dict:
+    out = tmp_path / f"{name}.json"
+    p = run("score", *args, "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    return json.loads(out.read_text())
+
+
+def test_3d_points_at_the_centre_of_mass_height_score_as_the_planar_command(tmp_path):
+    """Three numbers a point select the 3-D model; at the centre of mass's height, with a planar
+    task, it is the planar metric (no moment about a horizontal axis to resist)."""
+    poly = paper_object("irregular_pentagon")
+    rng = np.random.default_rng(11)
+    shape = ";".join(f"{x},{y}" for x, y in poly.vertices)
+    for k in range(4):
+        pts = poly.locate(rng.uniform(-np.pi, np.pi, 4)).point
+        task = f"{0.1 * k},{-0.05 * k},{0.02 * k}"
+        flat = ";".join(f"{x},{y}" for x, y in pts)
+        tall = ";".join(f"{x},{y},0.1" for x, y in pts)
+        a = _score_result(tmp_path, f"a{k}", "--polygon", shape, "--points", flat, "--task", task)
+        fx, fy, mz = (float(v) for v in task.split(","))
+        b = _score_result(
+            tmp_path,
+            f"b{k}",
+            *("--polygon", shape, "--points", tall, "--height", "0.2"),
+            *("--task", f"{fx},{fy},0,0,0,{mz}"),
+        )
+        assert a["feasible"] == b["feasible"]
+        if a["feasible"]:
+            assert b["s_g"] == pytest.approx(a["s_g"], abs=1e-6)
+            assert np.array(b["tangential_forces"]).shape == (4, 2)
+
+
+def test_3d_score_is_the_librarys_on_the_prism_and_sees_the_twist(tmp_path):
+    """The command's 3-D S_G is grasp_score_3d of the prism's contacts (unit-moment frame, a
+    top-face contact included, in the order given); two contacts on one line cannot resist a
+    moment about that line, which the planar metric cannot express."""
+    from controllers.grasp import Polygon, grasp_score_3d, prism_contacts
+
+    square = "0,0;0.05,0;0.05,0.05;0,0.05"
+    pts = "0.05,0.025,0.15;0.025,0.03,0.2;0,0.025,0.05;0.025,0,0.12"
+    got = _score_result(tmp_path, "g", "--polygon", square, "--points", pts, "--height", "0.2")
+    poly = Polygon.from_vertices([[0, 0], [0.05, 0], [0.05, 0.05], [0, 0.05]], name="square")
+    sides = np.array([[0.025, 0.0], [-0.025, 0.0], [0.0, -0.025]])  # centroid frame
+    theta = np.array([poly.theta_of(p) for p in sides])
+    p3, n3 = prism_contacts(
+        poly, theta, [0.15, 0.05, 0.12], 0.2, top=[[0.0, 0.005]], unit_moment=True
+    )
+    given = [0, 3, 1, 2]  # side, top, side, side as on the command line
+    ref = grasp_score_3d(p3[given], n3[given])
+    assert got["feasible"] == ref.feasible
+    assert got["s_g"] == pytest.approx(ref.s_g, abs=1e-6)
+    assert got["normal_forces"] == pytest.approx(ref.normal_forces.tolist(), abs=1e-5)
+    line = "0.05,0.025,0.1;0,0.025,0.1"
+    twist = run("score", "--polygon", square, "--points", line, "--height", "0.2",
+                "--task", "0.1,0,0,0.1,0,0")  # fmt: skip
+    assert twist.returncode == 0 and twist.stdout.startswith("infeasible"), twist.stdout
