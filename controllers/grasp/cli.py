@@ -179,13 +179,12 @@ def _score_3d(args: argparse.Namespace, raw: np.ndarray, poly: Polygon, points: 
     inside = np.all(xy @ _edge_normals(poly).T - poly.offset[None, :] <= tol, axis=1)
     top = (np.abs(z - h) <= tol) & inside
     side = ~top & (off <= tol) & (z >= -tol) & (z <= h + tol)
-    bad = np.flatnonzero(~(top | side))
-    if bad.size:
-        i = int(bad[0])
-        raise PolygonError(
-            f"--points: point {i} {tuple(float(c) for c in points[i])} is not on the prism's "
-            f"sides (on the outline, 0 <= z <= {h:g}) or top face (inside, z = {h:g})"
-        )
+    _refuse_first(
+        ~(top | side),
+        points,
+        f"is not on the prism's sides (on the outline, 0 <= z <= {h:g}) or top face "
+        f"(inside, z = {h:g})",
+    )
     prepare_json(args)
     theta = np.array([poly.theta_of(p) for p in on[side]])
     p3, n3 = prism_contacts(poly, theta, np.clip(z[side], 0.0, h), h, top=xy[top], unit_moment=True)
@@ -194,7 +193,15 @@ def _score_3d(args: argparse.Namespace, raw: np.ndarray, poly: Polygon, points: 
     return _report_score(args, grasp_score_3d(p3, n3, task))
 
 
+def _refuse_first(bad: np.ndarray, points: np.ndarray, problem: str) -> None:
+    """Raise :class:`PolygonError` naming the first point marked ``bad`` and its ``problem``."""
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise PolygonError(f"--points: point {i} {tuple(float(c) for c in points[i])} {problem}")
+
+
 def _edge_normals(poly: Polygon) -> np.ndarray:
+    """Outward unit normals (k, 2) of the polygon's edges."""
     return np.stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)], axis=1)
 
 
@@ -210,12 +217,13 @@ def cmd_score(args: argparse.Namespace) -> int:
         raise PolygonError("--task: points with two numbers take 3 numbers FX,FY,MZ")
     points = points - centroid
     on, edge, off = poly.nearest_on_outline(points)
-    bad = np.flatnonzero(off > ON_BOUNDARY_TOLERANCE * poly.diameter)
-    if bad.size:
-        i = int(bad[0])
-        raise PolygonError(
-            f"--points: point {i} {tuple(float(c) for c in points[i] + centroid)} "
-            f"is {off[i]:.3g} away from the polygon outline: give points on its edges"
+    far = off > ON_BOUNDARY_TOLERANCE * poly.diameter
+    if far.any():
+        gap = off[np.flatnonzero(far)[0]]
+        _refuse_first(
+            far,
+            points + centroid,
+            f"is {gap:.3g} away from the polygon outline: give points on its edges",
         )
     prepare_json(args)
     scale = 1.0 / poly.max_moment
