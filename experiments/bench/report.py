@@ -9,7 +9,8 @@ judge's tolerance), ``wall_per_state.png`` (mean wall seconds per episode spent 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +48,17 @@ def _save(fig: Any, path: Path) -> None:
         fig.savefig(tmp, format="png")
 
 
+@contextmanager
+def _plot(path: Path, title: str) -> Iterator[Any]:
+    """Axes of a new figure to draw on; the figure gets ``title`` and is saved to ``path``
+    (written whole) when the block ends."""
+    fig = _figure()
+    ax = fig.add_subplot()
+    yield ax
+    ax.set_title(title)
+    _save(fig, path)
+
+
 def _no_data(ax: Any, text: str) -> None:
     """An empty plot: ``text`` in the middle, no axes."""
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
@@ -58,76 +70,71 @@ def _pct(x: float) -> str:
 
 
 def plot_success(s: BenchSummary, path: Path) -> None:
-    fig = _figure()
-    ax = fig.add_subplot()
-    labels = [f"all\n(n = {s.episodes})"]
-    rates = [s.rate]
-    for blocks, n, k in s.by_blocks:
-        labels.append(f"{blocks} blocks\n(n = {n})" if blocks is not None else f"(n = {n})")
-        rates.append(wilson_interval(k, n))
-    x = np.arange(len(rates))
-    est = np.array([100 * r.estimate for r in rates])
-    err = np.array(
-        [[100 * (r.estimate - r.low) for r in rates], [100 * (r.high - r.estimate) for r in rates]]
-    )
-    ax.errorbar(x, est, yerr=err, fmt="o", capsize=6, color="tab:blue")
-    ax.set_xticks(x, labels)
-    ax.set_ylim(0, 105)
-    ax.set_xlim(-0.5, len(rates) - 0.5)
-    ax.set_ylabel("episodes delivered (%)")
-    ax.set_title(f"Success rate with Wilson 95 % interval ({s.episodes} episodes)")
-    ax.grid(axis="y", alpha=0.3)
-    _save(fig, path)
+    with _plot(path, f"Success rate with Wilson 95 % interval ({s.episodes} episodes)") as ax:
+        labels = [f"all\n(n = {s.episodes})"]
+        rates = [s.rate]
+        for blocks, n, k in s.by_blocks:
+            labels.append(f"{blocks} blocks\n(n = {n})" if blocks is not None else f"(n = {n})")
+            rates.append(wilson_interval(k, n))
+        x = np.arange(len(rates))
+        est = np.array([100 * r.estimate for r in rates])
+        err = np.array(
+            [
+                [100 * (r.estimate - r.low) for r in rates],
+                [100 * (r.high - r.estimate) for r in rates],
+            ]
+        )
+        ax.errorbar(x, est, yerr=err, fmt="o", capsize=6, color="tab:blue")
+        ax.set_xticks(x, labels)
+        ax.set_ylim(0, 105)
+        ax.set_xlim(-0.5, len(rates) - 0.5)
+        ax.set_ylabel("episodes delivered (%)")
+        ax.grid(axis="y", alpha=0.3)
 
 
 def plot_failures(s: BenchSummary, path: Path) -> None:
-    fig = _figure()
-    ax = fig.add_subplot()
-    if s.failures:
-        reasons = [f.reason for f in s.failures][::-1]
-        counts = [f.episodes for f in s.failures][::-1]
-        bars = ax.barh(reasons, counts, color="tab:red")
-        ax.bar_label(bars, padding=3)
-        ax.set_xlabel("episodes")
-        ax.xaxis.get_major_locator().set_params(integer=True)
-    else:
-        _no_data(ax, "no failed episode")
-    ax.set_title(f"Failure reasons ({s.episodes - s.successes} of {s.episodes} episodes)")
-    _save(fig, path)
+    with _plot(
+        path, f"Failure reasons ({s.episodes - s.successes} of {s.episodes} episodes)"
+    ) as ax:
+        if s.failures:
+            reasons = [f.reason for f in s.failures][::-1]
+            counts = [f.episodes for f in s.failures][::-1]
+            bars = ax.barh(reasons, counts, color="tab:red")
+            ax.bar_label(bars, padding=3)
+            ax.set_xlabel("episodes")
+            ax.xaxis.get_major_locator().set_params(integer=True)
+        else:
+            _no_data(ax, "no failed episode")
 
 
 def plot_place_error(s: BenchSummary, path: Path) -> None:
-    fig = _figure()
-    ax = fig.add_subplot()
-    tolerance = 1000.0 * PLACE_TOLERANCE
-    if s.place_error_mm:
-        errors = np.asarray(s.place_error_mm)
-        top = max(tolerance, float(errors.max())) * 1.05
-        ax.hist(errors, bins=np.linspace(0.0, top, 30), color="tab:blue", alpha=0.8)
-        styles = (":", "--", "-.", (0, (1, 4)))
-        for (q, value), style in zip(s.place_percentiles, styles, strict=False):
-            ax.axvline(value, color="black", ls=style, lw=1, label=f"p{q} {value:.1f} mm")
-        ax.axvline(tolerance, color="tab:red", lw=1.5, label=f"judge's tolerance {tolerance:g} mm")
-        ax.yaxis.get_major_locator().set_params(integer=True)
-        ax.legend(loc="upper right")
-        ax.set_xlabel("place error (mm)")
-        ax.set_ylabel("deliveries")
-    else:
-        _no_data(ax, "no delivery was judged")
-    ax.set_title(f"Place error of the judged deliveries (n = {len(s.place_error_mm)})")
-    _save(fig, path)
+    with _plot(path, f"Place error of the judged deliveries (n = {len(s.place_error_mm)})") as ax:
+        tolerance = 1000.0 * PLACE_TOLERANCE
+        if s.place_error_mm:
+            errors = np.asarray(s.place_error_mm)
+            top = max(tolerance, float(errors.max())) * 1.05
+            ax.hist(errors, bins=np.linspace(0.0, top, 30), color="tab:blue", alpha=0.8)
+            styles = (":", "--", "-.", (0, (1, 4)))
+            for (q, value), style in zip(s.place_percentiles, styles, strict=False):
+                ax.axvline(value, color="black", ls=style, lw=1, label=f"p{q} {value:.1f} mm")
+            ax.axvline(
+                tolerance, color="tab:red", lw=1.5, label=f"judge's tolerance {tolerance:g} mm"
+            )
+            ax.yaxis.get_major_locator().set_params(integer=True)
+            ax.legend(loc="upper right")
+            ax.set_xlabel("place error (mm)")
+            ax.set_ylabel("deliveries")
+        else:
+            _no_data(ax, "no delivery was judged")
 
 
 def plot_wall_per_state(s: BenchSummary, path: Path) -> None:
-    fig = _figure()
-    ax = fig.add_subplot()
-    names = [r.state for r in s.states][::-1]
-    means = [r.mean_per_episode for r in s.states][::-1]
-    bars = ax.barh(names, means, color="tab:green")
-    ax.bar_label(bars, labels=[f"{m:.1f}" for m in means], padding=3)
-    ax.set_xlabel("wall seconds per episode (mean)")
-    ax.set_title(f"Wall time per state ({s.episodes} episodes)")
-    _save(fig, path)
+    with _plot(path, f"Wall time per state ({s.episodes} episodes)") as ax:
+        names = [r.state for r in s.states][::-1]
+        means = [r.mean_per_episode for r in s.states][::-1]
+        bars = ax.barh(names, means, color="tab:green")
+        ax.bar_label(bars, labels=[f"{m:.1f}" for m in means], padding=3)
+        ax.set_xlabel("wall seconds per episode (mean)")
 
 
 def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
