@@ -8,36 +8,19 @@ import os
 import signal
 import subprocess
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from rerun.chunk import RrdReader
 
 from controllers.grasp import cli as grasp_cli
-from experiments.paper.reproduce import ReproduceConfig, reproduce
+from experiments.paper.reproduce import reproduce
 from hand_sim import show
 from hand_sim.recorder import read_recording
+from tests.experiments.tiny_reproduce import tiny_config
 
 PAPER = [sys.executable, "-m", "experiments.paper"]
-TINY = replace(
-    ReproduceConfig.quick_run(),
-    seeds=(1,),
-    workers=1,
-    ql_epochs=4,
-    predictor_epochs=2,
-    test_trials=8,
-    family_size=2,
-    family_trials=4,
-    curve_epochs=4,
-    atomic_epochs=4,
-    atomic_trials=20,
-    atomic_test_trials=20,
-    general_trials=10,
-    validation_polygons=4,
-    heldout_polygons=4,
-    heldout_trials=2,
-)
+TINY = tiny_config((1,))
 
 
 def _default_sigint() -> None:

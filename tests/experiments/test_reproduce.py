@@ -13,26 +13,10 @@ from controllers.grasp.objects import PAPER_LABELS
 from controllers.grasp.qlearning import ACTIONS, N_BINS, save_q_table
 from controllers.grasp.run_folder import check_finished_run, mark_started
 from controllers.grasp.shipped import check_figures
-from experiments.paper.reproduce import MODEL_FILES, ReproduceConfig, reproduce
+from experiments.paper.reproduce import MODEL_FILES, reproduce
+from tests.experiments.tiny_reproduce import tiny_config
 
-TINY = replace(
-    ReproduceConfig.quick_run(),
-    seeds=(1, 2),
-    workers=1,
-    ql_epochs=4,
-    predictor_epochs=2,
-    test_trials=8,
-    family_size=2,
-    family_trials=4,
-    curve_epochs=4,
-    atomic_epochs=4,
-    atomic_trials=20,
-    atomic_test_trials=20,
-    general_trials=10,
-    validation_polygons=4,
-    heldout_polygons=4,
-    heldout_trials=2,
-)
+TINY = tiny_config((1, 2))
 
 COMPARED = (
     "report.md",
