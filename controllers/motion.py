@@ -66,9 +66,6 @@ class MotionParams:
     approach_step: float = 0.01
 
 
-DEFAULT_MOTION = MotionParams()
-
-
 @dataclass(frozen=True, eq=False)
 class BlockSite:
     """Where the hand works: the world, the planning model, the perceived block and the real
