@@ -18,7 +18,8 @@ from controllers.cspace import PALM_SITE
 from controllers.finger_geometry import fingertips_at, pad_normals
 from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
 from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
-from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
+from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS
+from experiments.physics.roc import auc_mann_whitney, roc
 from experiments.physics.study import (
     MAX_SHIFT,
     MAX_TURN,
