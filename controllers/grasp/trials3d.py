@@ -48,7 +48,7 @@ from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.session import separate_contacts
 from controllers.grasp.state import ControlState3D
 from controllers.grasp.trials import CONVERGENCE_STEP, GAIN, MAX_STEPS, N_CONTACTS
-from controllers.grasp.wrench3d import eps_mc, mc_residual
+from controllers.grasp.wrench3d import mc_residual
 
 
 @dataclass(frozen=True)
@@ -158,16 +158,31 @@ def planar_part(task: ArrayLike | None) -> NDArray[np.float64] | None:
     return t[..., [0, 1, 5]]
 
 
-def height_gradient(frames: ContactFrames3D, task: ArrayLike | None = None) -> NDArray[np.float64]:
-    """The MC height step's direction, (T, n): the exact d eps_MC / d r_phi,k =
-    (2/n) rho_m . e_theta,k (Eq. 3 with dm/dr_phi = -e_theta, Eq. 9) divided by its curvature
-    2 |e_theta|^2 / n^2 = 2 / n^2, i.e. n rho_m . e_theta,k = r_phi,k - r_phi,k*: a step of
-    ``gain`` moves each height that fraction of the way to its minimizer."""
-    n = frames.point.shape[-2]
+def residual_about_mean_height(
+    frames: ContactFrames3D, task: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """The MC residual rho = t - (1/n) sum w_i (Eq. 2, 6-D) with moments about c, the point on
+    the vertical axis at the contacts' mean height (the task, given about the centre of mass,
+    moved there: rho_m - c x rho_f), shape (T, 6)."""
     rho = mc_residual(frames, task)
     centre = np.zeros((rho.shape[0], 3))
     centre[:, 2] = frames.point[..., 2].mean(-1)
-    rho_m = rho[:, 3:] - np.cross(centre, rho[:, :3])
+    return np.concatenate([rho[:, :3], rho[:, 3:] - np.cross(centre, rho[:, :3])], axis=1)
+
+
+def height_gradient(frames: ContactFrames3D, task: ArrayLike | None = None) -> NDArray[np.float64]:
+    """The MC height step's direction, (T, n).
+
+    Moments are taken about c, the point on the vertical axis at the contacts' mean height (the
+    task, given about the centre of mass, moved there: t_m - c x t_f). About c the moment of a
+    force imbalance the unit normal forces leave (the S_G program balances it with its N_i) is
+    no reason to move a height; about the centre of mass it would spread the contacts apart.
+    With c held, d eps_MC / d r_phi,k = (2/n) rho_m . e_theta,k (Eq. 3 with
+    dm/dr_phi = -e_theta, Eq. 9); dividing by its curvature 2 |e_theta|^2 / n^2 = 2 / n^2 gives
+    n rho_m . e_theta,k = r_phi,k - r_phi,k*: a step of ``gain`` moves each height that
+    fraction of the way to its minimizer (a damped Newton step)."""
+    n = frames.point.shape[-2]
+    rho_m = residual_about_mean_height(frames, task)[:, 3:]
     e_theta = face_axes(frames.normal_theta, frames.normal_phi)[1]
     return n * np.einsum("td,tnd->tn", rho_m, e_theta)
 
@@ -182,7 +197,9 @@ def control_state_3d(
     task: ArrayLike | None = None,
 ) -> ControlState3D:
     """Both controllers' errors and gradients (theta, then height) at (theta, z) (module
-    docstring). eps_FC includes the task's f_z, which no side contact changes."""
+    docstring). eps_FC includes the task's f_z, which no side contact changes; eps_MC takes
+    moments about the contacts' mean height (:func:`residual_about_mean_height`), so contacts
+    at one height have the planar eps_MC and the learned composers' inputs keep their meaning."""
     planar = batch.planar(index, theta)
     frames = side_frames(planar, z)
     t2 = planar_part(task)
@@ -194,7 +211,7 @@ def control_state_3d(
         z=z,
         frames=frames,
         eps_fc=wrench.eps_fc(theta, t2) + fz**2,
-        eps_mc=eps_mc(frames, task),
+        eps_mc=(residual_about_mean_height(frames, task) ** 2).sum(-1),
         grad_fc=np.concatenate([wrench.fc_gradient_convex(theta, t2), zero], axis=1),
         grad_mc=np.concatenate(
             [wrench.mc_gradient_convex(planar, theta, t2), height_gradient(frames, task)], axis=1
