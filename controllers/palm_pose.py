@@ -61,6 +61,7 @@ class ReachQuery:
     slide: bool = False
     samples: FingerSamples | None = None
     squeeze: float = SQUEEZE_REACH
+    heights: NDArray[np.float64] | None = None  #: world z of each contact (3-D grasp), or None
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,6 +166,7 @@ def search_seeds(
             qpos=qpos,
             tries=confirm_tries,
             check_spacing=check_spacing,
+            heights=query.heights,
         )
         if not reach.reachable:
             reason = reach.reason
@@ -220,6 +222,7 @@ def search_poses(
                 slide=query.slide,
                 samples=query.samples,
                 squeeze=query.squeeze,
+                heights=query.heights,
             )
             qpos = pose.qpos.copy()
             qpos[hand_adr] = reach.hand_q

@@ -32,7 +32,7 @@ S_G (``controllers.grasp score``) but not synthesized: a top grasp's fingers pre
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -270,6 +270,49 @@ def score_contacts_3d(frames: ContactFrames3D, task: ArrayLike | None = None) ->
     ]
 
 
+def advance(
+    batch: PrismBatch,
+    index: NDArray[np.int64],
+    theta: NDArray[np.float64],
+    z: NDArray[np.float64],
+    delta: NDArray[np.float64],
+    active: NDArray[np.bool_],
+    separate: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """One control step: the active trials' coordinates moved by ``delta`` (T, 2n: theta then
+    height), theta wrapped and the pads kept apart (``separate``), heights put back in the band.
+    Returns (theta, z, moved): moved is each trial's largest change (rad of theta, or height in
+    the unit-moment frame: a length compared as an arc at unit distance)."""
+    k_n = theta.shape[1]
+    d = np.where(active[:, None], delta, 0.0)
+    new_theta = separate(wrap_angle(theta + d[:, :k_n]))
+    new_z = batch.into_band(index, z + d[:, k_n:])
+    moved = np.maximum(
+        np.abs(wrap_angle(new_theta - theta)).max(axis=1), np.abs(new_z - z).max(axis=1)
+    )
+    return new_theta, new_z, moved
+
+
+def pad_spacing(
+    batch: PrismBatch, index: NDArray[np.int64], min_separation: float, offset: float
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """The projection that keeps each trial's pads ``min_separation`` apart (the polygons' own
+    unit; :func:`~controllers.grasp.session.separate_contacts` on theta); the identity for 0."""
+
+    def separate(th: NDArray[np.float64]) -> NDArray[np.float64]:
+        if min_separation <= 0.0:
+            return th
+        out = th.copy()
+        for i, k in enumerate(index):
+            unit = batch.polygons.polygons[k]
+            out[i] = separate_contacts(
+                unit, th[i], min_separation / batch.scale[k], offset / batch.scale[k]
+            )
+        return out
+
+    return separate
+
+
 def run_trials_3d(
     batch: PrismBatch,
     object_index: ArrayLike,
@@ -304,20 +347,8 @@ def run_trials_3d(
     else:
         theta = np.array(initial[0], dtype=float).reshape(n, -1)
         z = np.array(initial[1], dtype=float).reshape(n, -1)
-    theta = wrap_angle(theta)
-
-    def separate(th: NDArray[np.float64]) -> NDArray[np.float64]:
-        if min_separation <= 0.0:
-            return th
-        out = th.copy()
-        for i, k in enumerate(idx):
-            unit = batch.polygons.polygons[k]
-            out[i] = separate_contacts(
-                unit, th[i], min_separation / batch.scale[k], separation_offset / batch.scale[k]
-            )
-        return out
-
-    theta = separate(theta)
+    separate = pad_spacing(batch, idx, min_separation, separation_offset)
+    theta = separate(wrap_angle(theta))
     z = batch.into_band(idx, z)
     theta0, z0 = theta.copy(), z.copy()
     active = np.ones(n, dtype=bool)
@@ -325,17 +356,9 @@ def run_trials_3d(
     converged = np.zeros(n, dtype=bool)
     composer.begin(n, rng)
     state = control_state_3d(batch, idx, theta, z, 0, active.copy(), task)
-    k_n = theta.shape[1]
     for k in range(max_steps):
         grad = composer.gradient(state, rng)
-        delta = np.where(active[:, None], -gain * grad, 0.0)
-        new_theta = separate(wrap_angle(theta + delta[:, :k_n]))
-        new_z = batch.into_band(idx, z + delta[:, k_n:])
-        # heights are lengths: their step is compared in rad of arc at unit distance
-        moved = np.maximum(
-            np.abs(wrap_angle(new_theta - theta)).max(axis=1), np.abs(new_z - z).max(axis=1)
-        )
-        theta, z = new_theta, new_z
+        theta, z, moved = advance(batch, idx, theta, z, -gain * grad, active, separate)
         steps[active] = k + 1
         done = active & (moved <= CONVERGENCE_STEP)
         converged |= done

@@ -18,24 +18,17 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.fine_reach import GRASP_DEPTH
+from controllers.fine_reach import GRASP_DEPTH, TOP_GRASP_DEPTHS
 from controllers.grasp.composition import Composer
 from controllers.grasp.polygon import Polygon
-from controllers.grasp.score3d import grasp_score_3d
 from controllers.grasp.session import GraspSynthesis
-from controllers.grasp.task_height import task_shift
-from controllers.grasp.trials3d import HeightBand, PrismBatch, run_trials_3d
+from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.trials3d import HeightBand
 from controllers.hand_reach import CONTACT_SEPARATION
 from hand_sim import robot
 
 #: Grasp models of the study (and of ``--model``).
 MODELS: tuple[str, ...] = ("planar", "3d")
-#: Depths (m below the block's top) a top grasp's contacts may take in the 3-D model: from the
-#: task cycle's grasp depth (a contact nearer the top edge is pressed by the side of the
-#: fingertip) to 6 cm. The 6 cm was chosen by looking at physical results: a probe placing
-#: KB's planar contacts at one depth on the square, pentagon, hexagon and rectangle (12 grasps
-#: each, seed 0) held 15 of 48 at 4 cm, 38 at 6 cm and 34 at 7 cm (docs/grasp3d_physics.md).
-TOP_GRASP_DEPTHS = (GRASP_DEPTH, 0.06)
 
 
 @dataclass(frozen=True)
@@ -89,26 +82,23 @@ def synthesize(
         score = syn.finish()
         s_g = float(score.s_g) if score.feasible else None
         return Synthesis(syn.theta, None, s_g, syn.steps, bool(syn.converged))
-    batch = PrismBatch.of([polygon], [height], [top_grasp_band(height)])
-    theta0 = np.asarray(theta_initial, dtype=float)[None]
-    lo, hi = batch.z_low[0], batch.z_high[0]
-    z0 = lo + rng.uniform(0.0, 1.0, size=theta0.shape) * (hi - lo)
-    out = run_trials_3d(
-        batch,
-        np.zeros(1, dtype=np.int64),
+    band = top_grasp_band(height)
+    rng_heights = rng.uniform(0.0, 1.0, size=len(theta_initial))
+    syn3 = GraspSynthesis3D(
+        polygon,
+        height,
+        band,
         composer,
+        theta_initial,
+        band.low - 0.5 * height + rng_heights * (band.high - band.low),
         rng,
-        initial=(theta0, z0),
         min_separation=CONTACT_SEPARATION,
         separation_offset=robot.PAD_RADIUS,
+        load=load,
+        yaw=yaw,
     )
-    theta = out.theta_final[0]
-    one = np.zeros(1, dtype=np.int64)
-    frames = batch.locate(one, theta[None], out.z_final[0][None])
-    shift = task_shift(frames.point[0], frames.normal[0], lo, hi, load, yaw).shift
-    z = out.z_final[0] + shift
-    frames = batch.locate(one, theta[None], z[None])
-    score = grasp_score_3d(frames.point[0], frames.normal[0])
-    s_g = float(score.s_g) if score.feasible else None
-    heights = z * polygon.max_moment
-    return Synthesis(theta, heights, s_g, int(out.steps[0]), bool(out.converged[0]))
+    while not syn3.done:
+        syn3.step()
+    score3 = syn3.finish()
+    s_g = float(score3.s_g) if score3.feasible else None
+    return Synthesis(syn3.theta, syn3.heights, s_g, syn3.steps, bool(syn3.converged))
