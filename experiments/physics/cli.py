@@ -40,11 +40,13 @@ def run(args: argparse.Namespace) -> int:
     from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, run_study, write_report
     from experiments.physics.synthesis import MODELS
 
+    models = MODELS if args.model == "both" else (args.model,)
+    if args.depth is not None and models != ("planar",):
+        raise cli.CommandLineError("--depth", "it places a planar grasp: use --model planar")
     cli.prepare_dir(args.out, "--out")
     objects = QUICK_OBJECTS if args.quick and args.objects is None else args.objects
     objects = PAPER_OBJECTS if objects is None else objects
     grasps = QUICK_GRASPS if args.quick and args.grasps is None else (args.grasps or 50)
-    models = MODELS if args.model == "both" else (args.model,)
     total = len(models) * len(objects) * 3 * grasps
     from tqdm import tqdm
 
@@ -54,7 +56,13 @@ def run(args: argparse.Namespace) -> int:
         tqdm(total=total, unit="grasp", disable=not sys.stderr.isatty()) as bar,
     ):
         results = run_study(
-            objects, grasps, args.seed, args.workers, progress=bar.update, models=models
+            objects,
+            grasps,
+            args.seed,
+            args.workers,
+            progress=bar.update,
+            models=models,
+            depth=args.depth,
         )
         summary = write_report(
             args.out,
@@ -104,6 +112,13 @@ def build_parser() -> cli.ArgumentParser:
         "the fingertips' height), 3d (contacts with heights on the prism's sides, in the band a "
         "top grasp reaches) or both, from the same starts (default planar; "
         "docs/grasp3d_physics.md)",
+    )
+    ph.add_argument(
+        "--depth",
+        type=cli.number(0.02, 0.15),
+        metavar="M",
+        help="planar model: take every contact M metres below the block's top instead of at "
+        "its fingertip's height, 0.02..0.15 (the probe behind the 3-D band)",
     )
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)

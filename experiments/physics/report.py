@@ -41,7 +41,11 @@ PICTURES = 4
 
 
 def jobs_for(
-    objects: Sequence[str], grasps: int, seed: int, models: Sequence[str] = ("planar",)
+    objects: Sequence[str],
+    grasps: int,
+    seed: int,
+    models: Sequence[str] = ("planar",),
+    depth: float | None = None,
 ) -> list[Job]:
     """The study's chunks: per model, object and controller (the same starts for every model)."""
     out = []
@@ -51,7 +55,7 @@ def jobs_for(
             for ci, ctrl in enumerate(CONTROLLERS):
                 for start in range(0, grasps, CHUNK):
                     idx = tuple(range(start, min(grasps, start + CHUNK)))
-                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model))
+                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model, depth))
     return out
 
 
@@ -62,9 +66,10 @@ def run_study(
     workers: int = 2,
     progress=None,
     models: Sequence[str] = ("planar",),
+    depth: float | None = None,
 ) -> list[dict]:
     """Every grasp, in a fixed order (model, object, controller, index) whatever the workers."""
-    jobs = jobs_for(objects, grasps, seed, models)
+    jobs = jobs_for(objects, grasps, seed, models, depth)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:

@@ -281,8 +281,10 @@ def test_grasp(
     rng: np.random.Generator,
     out: GraspOutcome,
     snapshot: Snapshot | None = None,
+    depth: float | None = None,
 ) -> GraspOutcome:
-    """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``."""
+    """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``.
+    ``depth`` (planar model): every contact that far (m) below the top."""
     world = sw.world
     world.reset()
     spec = world.scene.block(sw.name)
@@ -301,7 +303,7 @@ def test_grasp(
     )
     out.theta = [round(float(t), 6) for t in syn.theta]
     out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
-    heights = None
+    heights = None if depth is None else np.full(len(syn.theta), sw.target.top_z - depth)
     if syn.heights is not None:
         out.heights = [round(float(z), 6) for z in syn.heights]
         heights = sw.target.top_z - 0.5 * spec.height + syn.heights
@@ -363,6 +365,9 @@ class Job:
     indices: tuple[int, ...]
     seed: int
     model: str = "planar"
+    #: planar model only: take every contact this far (m) below the top instead of at its
+    #: fingertip's height (the probe behind the 3-D band, docs/grasp3d_physics.md)
+    depth: float | None = None
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -380,6 +385,6 @@ def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
         o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model)
-        test_grasp(sw, composer, rng, o, snapshot)
+        test_grasp(sw, composer, rng, o, snapshot, depth=job.depth)
         out.append(o.to_json())
     return out

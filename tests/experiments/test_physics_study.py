@@ -173,3 +173,20 @@ def test_bad_objects_are_refused_with_one_line_and_nothing_written(tmp_path: Pat
     assert run.returncode == 2
     assert "circle" not in run.stdout and len(run.stderr.strip().splitlines()) == 1
     assert "valid" in run.stderr and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--model", "3d", "--depth", "0.06"), "--depth"),
+        (("--depth", "0.5"), "--depth"),
+        (("--model", "flat"), "--model"),
+    ],
+)
+def test_bad_model_or_depth_is_refused_with_one_line_and_nothing_written(
+    tmp_path: Path, args, message
+) -> None:
+    out = tmp_path / "never"
+    run = _cli("--out", str(out), *args)
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1
+    assert message in run.stderr and not out.exists()
