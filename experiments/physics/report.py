@@ -176,6 +176,8 @@ def render_grasp(entry: dict, seed: int, path: Path) -> bool:
         CONTROLLERS.index(entry["controller"]),
         (entry["index"],),
         seed,
+        entry.get("model", "planar"),
+        entry.get("depth"),
     )
     renderer: list = []
 
@@ -252,10 +254,12 @@ def write_report(
         if r["result"] == "dropped" and r["s_g"] is not None and r["s_g"] <= PAPER_THRESHOLD
     ]
     drawn = []
-    for r in false_pos[:pictures]:
-        name = f"dropped_{r['object']}_{r['controller']}_{r['index']}.png"
-        if render_grasp(r, seed, out / name):
-            drawn.append((name, r))
+    for m in models:  # up to ``pictures`` of each model
+        for r in [r for r in false_pos if r.get("model", "planar") == m][:pictures]:
+            prefix = "" if m == "planar" else f"{m}_"
+            name = f"dropped_{prefix}{r['object']}_{r['controller']}_{r['index']}.png"
+            if render_grasp(r, seed, out / name):
+                drawn.append((name, r))
     summary = {
         "command": command,
         "objects": list(objects),
@@ -312,17 +316,18 @@ def write_report(
         "",
     ]
     md += [
-        "| object | controller | grasp | S_G | lost under | shift (cm) | turn (deg) |",
-        "|---|---|---:|---:|---|---:|---:|",
+        "| model | object | controller | grasp | S_G | lost under | shift (cm) | turn (deg) |",
+        "|---|---|---|---:|---:|---|---:|---:|",
     ]
     for r in false_pos:
         st = r["failed_stage"]
         md.append(
-            f"| {r['object']} | {r['controller']} | {r['index']} | {r['s_g']:.3f} | {st} "
+            f"| {r['model']} | {r['object']} | {r['controller']} | {r['index']} | {r['s_g']:.3f} "
+            f"| {st} "
             f"| {r['shift'].get(st, float('nan')) * 100:.1f} "
             f"| {np.degrees(r['turn'].get(st, float('nan'))):.1f} |"
         )
     for name, r in drawn:
-        md += ["", f"![{r['object']} {r['controller']} {r['index']}]({name})"]
+        md += ["", f"![{r['model']} {r['object']} {r['controller']} {r['index']}]({name})"]
     write_text(out / "report.md", "\n".join(md) + "\n")
     return summary

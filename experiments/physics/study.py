@@ -83,6 +83,7 @@ class GraspOutcome:
     index: int
     theta_initial: list[float]
     model: str = "planar"  #: the grasp model the controller ran on ("planar" or "3d")
+    depth: float | None = None  #: planar: every contact this far (m) below the top (--depth)
     theta: list[float] = field(default_factory=list)  #: final contact coordinates
     #: 3-D model: the controller's contact heights above the block's centre of mass (m)
     heights: list[float] = field(default_factory=list)
@@ -384,7 +385,7 @@ def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     out = []
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
-        o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model)
+        o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model, depth=job.depth)
         test_grasp(sw, composer, rng, o, snapshot, depth=job.depth)
         out.append(o.to_json())
     return out
