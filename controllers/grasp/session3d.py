@@ -17,9 +17,10 @@ from controllers.grasp.composition import Composer
 from controllers.grasp.errors import GraspError
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
-from controllers.grasp.session import SynthesisStep
+from controllers.grasp.session import SteppedSynthesis
+from controllers.grasp.state import ControlState3D
 from controllers.grasp.task_height import task_shift
-from controllers.grasp.trials import CONVERGENCE_STEP, GAIN, MAX_STEPS
+from controllers.grasp.trials import GAIN, MAX_STEPS
 from controllers.grasp.trials3d import (
     HeightBand,
     PrismBatch,
@@ -29,7 +30,7 @@ from controllers.grasp.trials3d import (
 )
 
 
-class GraspSynthesis3D:
+class GraspSynthesis3D(SteppedSynthesis):
     """A composite grasp controller on the prism of ``polygon`` (its own unit, centroid at the
     origin) and ``height``, contacts at polar angles ``theta_initial`` and heights
     ``heights_initial`` above the centre of mass (the polygon's unit), kept in ``band``.
@@ -85,67 +86,27 @@ class GraspSynthesis3D:
         self.composer.begin(1, rng)
         self._state = self._evaluate()
 
-    def _evaluate(self):
-        active = np.array([not self.done])
-        return control_state_3d(self._batch, self._index, self._theta, self._z, self.steps, active)
+    def _evaluate(self) -> ControlState3D:
+        return control_state_3d(
+            self._batch, self._index, self._theta, self._z, self.steps, self._active()
+        )
 
-    @property
-    def done(self) -> bool:
-        """The controller converged or used up its steps."""
-        return self.converged or self.steps >= self.max_steps
-
-    @property
-    def theta(self) -> NDArray[np.float64]:
-        """(n,) current contact coordinates (rad)."""
-        return self._theta[0].copy()
-
-    @property
-    def heights(self) -> NDArray[np.float64]:
-        """(n,) current contact heights above the centre of mass (the polygon's unit)."""
-        return self._z[0] * self._scale
-
-    @property
-    def eps_fc(self) -> float:
-        return float(self._state.eps_fc[0])
-
-    @property
-    def eps_mc(self) -> float:
-        return float(self._state.eps_mc[0])
-
-    def predicts_failure(self) -> bool | None:
-        """The composer's F/S predictor (section 4.2) on the current state; None without one."""
-        predictor = getattr(self.composer, "predictor", None)
-        if predictor is None:
-            return None
-        return bool(predictor.predicts_failure(self._state.eps_fc, self._state.eps_mc)[0])
-
-    def step(self) -> SynthesisStep:
-        """One control step (raises :class:`GraspError` once :attr:`done`)."""
-        if self.done:
-            raise GraspError("the grasp controller has already finished")
-        before = self._state
-        predicted = self.predicts_failure()
-        grad = self.composer.gradient(before, self.rng)
+    def _move(self, delta: NDArray[np.float64]) -> float:
         self._theta, self._z, moved = advance(
             self._batch,
             self._index,
             self._theta,
             self._z,
-            -self.gain * grad,
+            delta,
             np.ones(1, dtype=bool),
             self._separate,
         )
-        self.steps += 1
-        self.converged = bool(moved[0] <= CONVERGENCE_STEP)
-        self._state = self._evaluate()
-        return SynthesisStep(
-            step=self.steps,
-            theta=self.theta,
-            eps_fc=float(before.eps_fc[0]),
-            eps_mc=float(before.eps_mc[0]),
-            predicted_failure=predicted,
-            moved=float(moved[0]),
-        )
+        return float(moved[0])
+
+    @property
+    def heights(self) -> NDArray[np.float64]:
+        """(n,) current contact heights above the centre of mass (the polygon's unit)."""
+        return self._z[0] * self._scale
 
     def score(self) -> GraspScore3D:
         """S_G in 3-D (Eq. 13, 6-D wrenches, the null grasp) of the current contacts."""
