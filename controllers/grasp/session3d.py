@@ -17,7 +17,7 @@ from controllers.grasp.composition import Composer
 from controllers.grasp.errors import GraspError
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
-from controllers.grasp.session import SteppedSynthesis
+from controllers.grasp.session import SteppedSynthesis, SynthesisStep
 from controllers.grasp.state import ControlState3D
 from controllers.grasp.task_height import task_shift
 from controllers.grasp.trials import GAIN, MAX_STEPS
@@ -36,7 +36,7 @@ class GraspSynthesis3D(SteppedSynthesis):
     ``heights_initial`` above the centre of mass (the polygon's unit), kept in ``band``.
 
     ``load`` (m*g over the unit contact force) and ``yaw`` (the world x axis in the polygon's
-    frame) describe the task that sets the common height at :meth:`finish`; None leaves it.
+    frame) describe the task that sets the common height when the run ends; None leaves it.
     """
 
     def __init__(
@@ -82,7 +82,6 @@ class GraspSynthesis3D(SteppedSynthesis):
         self._z = self._batch.into_band(self._index, z / self._scale)
         self.steps = 0
         self.converged = False
-        self._finished = False
         self.composer.begin(1, rng)
         self._state = self._evaluate()
 
@@ -113,18 +112,22 @@ class GraspSynthesis3D(SteppedSynthesis):
         f = self._state.frames
         return grasp_score_3d(f.point[0], f.normal[0])
 
-    def finish(self) -> GraspScore3D:
-        """Set the common height by the task (when a load is given), tell the composer the run
-        ended and score the contacts; called again, only scores them."""
-        if self._finished:
-            return self.score()
-        self._finished = True
-        if self.load is not None:
+    def step(self) -> SynthesisStep:
+        """One control step; the step that ends the run (converged or the step limit) also sets
+        the common height by the task (when a load is given), so that :attr:`theta` and
+        :attr:`heights` are final once :attr:`done`."""
+        out = super().step()
+        if self.done and self.load is not None:
             f = self._state.frames
             lo, hi = self._batch.z_low[0], self._batch.z_high[0]
-            shift = task_shift(f.point[0], f.normal[0], lo, hi, self.load, self.yaw).shift
-            self._z = self._z + shift
+            self._z = (
+                self._z + task_shift(f.point[0], f.normal[0], lo, hi, self.load, self.yaw).shift
+            )
             self._state = self._evaluate()
+        return out
+
+    def finish(self) -> GraspScore3D:
+        """Tell the composer the run ended (learning composers update on it) and score it."""
         score = self.score()
         self.composer.end(self._state, np.array([score.success]))
         return score

@@ -101,23 +101,6 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done:
             break
     score = syn.finish()
-    if isinstance(syn, GraspSynthesis3D):  # the task moved the heights: take them there
-        query = reach_query(ep)
-        ep.contacts, ep.reach = reachable_contacts(
-            world,
-            query.prism,
-            query.target,
-            syn.theta,
-            model=query.planning,
-            samples=query.samples,
-            squeeze=query.squeeze,
-            heights=query.heights,
-        )
-        if not ep.reach.reachable:
-            record.reach_reasons.append(ep.reach.reason)
-            record.posture_retries += 1
-            ep.posture_mode = "contacts"
-            return Step(State.POSTURE_CONTROL, f"at the task's height: {ep.reach.reason}")
     record.converged = syn.converged
     record.s_g = float(score.s_g) if score.feasible else None
     record.contacts = ep.contacts.points.round(5).tolist()

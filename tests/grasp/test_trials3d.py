@@ -185,3 +185,49 @@ def test_a_control_state_has_theta_then_height_gradients():
     s = control_state_3d(batch, idx, theta, z, 0, np.ones(2, dtype=bool))
     assert s.grad_fc.shape == s.grad_mc.shape == s.coordinates.shape == (2, 8)
     np.testing.assert_array_equal(s.grad_fc[:, 4:], 0.0)  # FC never moves a height
+
+
+@pytest.mark.parametrize("controller", ["kb", "pi"])
+def test_one_grasp_stepped_is_the_trial_runner_and_the_task_then_sets_its_height(controller):
+    from controllers.grasp.session3d import GraspSynthesis3D
+
+    poly = paper_object("pentagon")
+    band = HeightBand.below_top(HEIGHT, 0.04, 0.06)
+    theta0 = np.array([0.3, 1.5, 2.9, 4.4])
+    z0 = np.array([0.05, 0.055, 0.045, 0.058])  # m above the centre of mass
+    kw = {"min_separation": 0.021, "separation_offset": 0.0085}
+    syn = GraspSynthesis3D(
+        poly, HEIGHT, band, make_composer(controller), theta0, z0, np.random.default_rng(1), **kw
+    )
+    while not syn.done:
+        syn.step()
+    score = syn.finish()
+    batch = PrismBatch.of([poly], [HEIGHT], [band])
+    runner = run_trials_3d(
+        batch,
+        np.zeros(1, dtype=np.int64),
+        make_composer(controller),
+        np.random.default_rng(1),
+        initial=(theta0[None], z0[None] / batch.scale[0]),
+        **kw,
+    )
+    np.testing.assert_allclose(syn.theta, runner.theta_final[0], atol=1e-12)
+    np.testing.assert_allclose(syn.heights, runner.z_final[0] * batch.scale[0], atol=1e-12)
+    assert syn.steps == runner.steps[0] and score.s_g == pytest.approx(runner.s_g[0], abs=1e-9)
+    # with the task: the same contacts moved together, as low as the band allows
+    tasked = GraspSynthesis3D(
+        poly,
+        HEIGHT,
+        band,
+        make_composer(controller),
+        theta0,
+        z0,
+        np.random.default_rng(1),
+        load=0.3,
+        **kw,
+    )
+    while not tasked.done:
+        tasked.step()
+    shift = tasked.heights - syn.heights
+    np.testing.assert_allclose(shift, shift[0], atol=1e-12)
+    assert tasked.heights.min() == pytest.approx(band.low - 0.5 * HEIGHT, abs=1e-9)
