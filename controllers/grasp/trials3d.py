@@ -47,7 +47,7 @@ from controllers.grasp.prism import ContactFrames3D, face_axes
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.session import separate_contacts
 from controllers.grasp.state import ControlState3D
-from controllers.grasp.trials import CONVERGENCE_STEP, GAIN, MAX_STEPS, N_CONTACTS
+from controllers.grasp.trials import GAIN, MAX_STEPS, N_CONTACTS, descend
 from controllers.grasp.wrench3d import mc_residual
 
 
@@ -351,21 +351,20 @@ def run_trials_3d(
     theta = separate(wrap_angle(theta))
     z = batch.into_band(idx, z)
     theta0, z0 = theta.copy(), z.copy()
-    active = np.ones(n, dtype=bool)
-    steps = np.zeros(n, dtype=np.int64)
-    converged = np.zeros(n, dtype=bool)
-    composer.begin(n, rng)
-    state = control_state_3d(batch, idx, theta, z, 0, active.copy(), task)
-    for k in range(max_steps):
-        grad = composer.gradient(state, rng)
-        theta, z, moved = advance(batch, idx, theta, z, -gain * grad, active, separate)
-        steps[active] = k + 1
-        done = active & (moved <= CONVERGENCE_STEP)
-        converged |= done
-        active = active & ~done
-        state = control_state_3d(batch, idx, theta, z, k + 1, active.copy(), task)
-        if not active.any():
-            break
+    coords = {"theta": theta, "z": z}
+
+    def evaluate(step: int, active: NDArray[np.bool_]) -> ControlState3D:
+        return control_state_3d(batch, idx, coords["theta"], coords["z"], step, active, task)
+
+    def move(delta: NDArray[np.float64], active: NDArray[np.bool_]) -> NDArray[np.float64]:
+        coords["theta"], coords["z"], moved = advance(
+            batch, idx, coords["theta"], coords["z"], delta, active, separate
+        )
+        return moved
+
+    run = descend(composer, rng, n, max_steps, gain, evaluate, move)
+    state, steps, converged = run.state, run.steps, run.converged
+    theta, z = coords["theta"], coords["z"]
     scores = score_contacts_3d(state.frames, task)
     success = np.array([s.success for s in scores])
     composer.end(state, success)
