@@ -101,6 +101,17 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done:
             break
     score = syn.finish()
+    # the final contacts (at their heights in 3-D) with their S_G (3-D S_G in 3-D)
+    ep.recorder.log_synthesis(
+        SynthesisRecord(
+            syn.steps,
+            syn.eps_fc,
+            syn.eps_mc,
+            None,
+            contact_points(ep, syn.theta),
+            float(score.s_g) if score.feasible else None,
+        )
+    )
     record.converged = syn.converged
     record.s_g = float(score.s_g) if score.feasible else None
     record.contacts = ep.contacts.points.round(5).tolist()

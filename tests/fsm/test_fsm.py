@@ -196,7 +196,9 @@ def test_a_3d_grasp_holds_the_block_at_its_contacts_heights_and_delivers_it(tmp_
     )
     assert depth.mean() > TOP_GRASP_DEPTHS[0] + 0.005  # lower than the planar grasp depth
     assert cycle["s_g"] is not None and cycle["s_g"] <= 0.4
-    assert "world/synthesis/contacts" in read_recording(tmp_path / "episode.rrd")
+    recording = read_recording(tmp_path / "episode.rrd")
+    assert "world/synthesis/contacts" in recording
+    assert any(path.endswith("synthesis/s_g") for path in recording)  # the final S_G
 
 
 def _scene_file(tmp_path: Path, table_x: float, position: tuple[float, float]) -> Path:
