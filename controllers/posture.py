@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
+from controllers.ik_progress import ReachProgress
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -374,11 +375,14 @@ def solve_posture(
         return float(np.linalg.norm(cfg.data.site_xpos[pad_sites] - centres, axis=1).sum())
 
     last_pad = np.inf
+    progress = ReachProgress(tolerance, reach_iterations)  # gives up a reach that cannot succeed
     for _ in range(reach_iterations):
         if slide is not None:
             follow_heights()
         now_pad = pad_error()
         if tip_error().max() < 0.5 * tolerance and last_pad - now_pad < PAD_SETTLED:
+            break
+        if progress.hopeless(float(tip_error().max())):
             break
         last_pad = now_pad
         if not ik_step(tips_and_pads):
