@@ -187,7 +187,10 @@ def run(argv: list[str] | None) -> int:
                 f"{sim:8.2f} {sim / physics_wall:9.1f}"
                 f"   {steps} mj_step replayed, final qpos within {worst_replay:.1e}"
             )
-            print(f"episode wall / physics-only wall: {wall / physics_wall:.1f}x")
+            print(
+                f"episode / physics only: wall {wall / physics_wall:.1f}x, "
+                f"CPU {cpu / physics_cpu:.1f}x"
+            )
     print(f"process wall time since start: {process_wall_seconds():.1f} s")
     return 0
 
