@@ -144,6 +144,7 @@ def search_seeds(
             fingers_may_touch=True,
             pad_centres=centres,
             qpos=start.qpos,
+            give_up=True,  # an unreachable posture is passed over
         )
         if not sol.reachable:
             reason = f"Posture Control: {', '.join(sol.unreachable)} cannot reach"
@@ -165,6 +166,7 @@ def search_seeds(
             qpos=qpos,
             tries=confirm_tries,
             check_spacing=check_spacing,
+            give_up=True,
         )
         if not reach.reachable:
             reason = reach.reason
@@ -220,6 +222,7 @@ def search_poses(
                 slide=query.slide,
                 samples=query.samples,
                 squeeze=query.squeeze,
+                give_up=reachable_only,  # else the loads of unreachable poses rank them
             )
             qpos = pose.qpos.copy()
             qpos[hand_adr] = reach.hand_q

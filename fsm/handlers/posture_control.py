@@ -99,7 +99,14 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
         # the contacts the nearest assignment gives the fingers at each seed
         for label, seed in roll_seeds(ep.world, params):
             contacts, _ = reachable_contacts(
-                ep.world, ep.prism, ep.target, theta, model=ep.planning, qpos=seed, tries=1
+                ep.world,
+                ep.prism,
+                ep.target,
+                theta,
+                model=ep.planning,
+                qpos=seed,
+                tries=1,
+                give_up=True,  # only the assignment is used
             )
             yield SeedStart(label, seed, contacts)
 

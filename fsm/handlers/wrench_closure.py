@@ -60,6 +60,8 @@ def wrench_closure(ep: Episode) -> Step:
             slide=query.slide,
             samples=query.samples,
             squeeze=query.squeeze,
+            # an unreachable top grasp only needs the verdict (a lateral one keeps its heights)
+            give_up=not query.slide,
         )
         ep.contacts, ep.reach = contacts, reach
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
