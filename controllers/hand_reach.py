@@ -365,6 +365,7 @@ def reachable_contacts(
     slide: bool = False,
     samples: FingerSamples | None = None,
     squeeze: float = SQUEEZE_REACH,
+    heights: ArrayLike | None = None,
     give_up: bool = False,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
@@ -374,19 +375,26 @@ def reachable_contacts(
     from that configuration instead of the world's. ``slide``: the contacts may move up or down
     their faces (:func:`check_reach`); the contacts returned are at the heights taken.
     ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
-    its contact each fingertip must reach; ``give_up``: each check stops as soon as it cannot
-    succeed (:func:`check_reach`)."""
+    its contact each fingertip must reach (:func:`check_reach`). ``heights`` (n,): world z of
+    each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
+    ``give_up``: each check stops as soon as it cannot succeed (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
     table_z = prism.bottom
     xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
     perms = np.array(list(itertools.permutations(range(len(th)))))
-    pts = np.concatenate([xy[perms], np.broadcast_to(z[None, :, None], (len(perms), 4, 1))], 2)
+    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
+    zs = (
+        np.broadcast_to(z[None, :], perms.shape)
+        if heights is None
+        else np.asarray(heights, dtype=float)[perms]
+    )
+    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
     cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
     first: tuple[FingerContacts, HandReach] | None = None
     for k in np.argsort(cost, kind="stable")[:tries]:
-        contacts = given_contacts(th, xy, nxy, z, perms[k])
+        contacts = given_contacts(th, xy, nxy, zs[k], perms[k])
         reach = check_reach(
             world,
             prism,

@@ -61,6 +61,7 @@ class ReachQuery:
     slide: bool = False
     samples: FingerSamples | None = None
     squeeze: float = SQUEEZE_REACH
+    heights: NDArray[np.float64] | None = None  #: world z of each contact (3-D grasp), or None
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +167,7 @@ def search_seeds(
             qpos=qpos,
             tries=confirm_tries,
             check_spacing=check_spacing,
+            heights=query.heights,
             give_up=True,
         )
         if not reach.reachable:
@@ -222,6 +224,7 @@ def search_poses(
                 slide=query.slide,
                 samples=query.samples,
                 squeeze=query.squeeze,
+                heights=query.heights,
                 give_up=reachable_only,  # else the loads of unreachable poses rank them
             )
             qpos = pose.qpos.copy()

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.composition import Composer
 from controllers.grasp.session import GraspSynthesis
+from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.grip import Grip
 from controllers.hand_reach import FingerContacts, HandReach
 from controllers.reach import CoarseReachPlan, ReachTarget
@@ -25,6 +26,8 @@ from hand_sim.world import World
 #: Controllers and approaches the command line accepts.
 CONTROLLERS = ("pi", "kb", "ql")
 APPROACH_CHOICES = ("auto", "top", "lateral")
+#: Grasp models of a top grasp (``--model``).
+GRASP_MODELS = ("planar", "3d")
 
 
 @dataclass(frozen=True)
@@ -40,6 +43,9 @@ class EpisodeOptions:
     place_pixel: tuple[float, float] | None = None
     controller: str = "pi"
     approach: str = "auto"
+    #: "planar" (the paper's controllers, contacts at the fingertips' height) or "3d" (contacts
+    #: with heights, controllers.grasp.session3d) for a top grasp
+    grasp_model: str = "planar"
     cycles: int | None = 1  #: None: all blocks
     out: Path = Path("runs/clutter3-0")
     record: bool = True
@@ -105,7 +111,7 @@ class Episode:
     # reach and grasp
     coarse: CoarseReachPlan | None = None
     posture_mode: str = "hold"  #: "hold" (after Fine Reach) or "contacts" (from Wrench Closure)
-    synthesis: GraspSynthesis | None = None
+    synthesis: GraspSynthesis | GraspSynthesis3D | None = None
     contacts: FingerContacts | None = None
     reach: HandReach | None = None
     grip: Grip | None = None

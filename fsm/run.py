@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsm.context import APPROACH_CHOICES, CONTROLLERS, EpisodeOptions, out_paths
+from fsm.context import APPROACH_CHOICES, CONTROLLERS, GRASP_MODELS, EpisodeOptions, out_paths
 from fsm.layout import ASKED_CLEARANCE, episode_scene, place_is_free
 from hand_sim.clitools import (
     ERRORS,
@@ -54,6 +54,14 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
         default="auto",
         choices=APPROACH_CHOICES,
         help="auto: the coarse planner chooses top or lateral; or force one",
+    )
+    ap.add_argument(
+        "--model",
+        default="planar",
+        choices=GRASP_MODELS,
+        help="grasp model of a top grasp: planar (the paper's controllers, contacts at the "
+        "fingertips' height) or 3d (contacts with heights, set by moment closure and the task; "
+        "docs/grasp3d_physics.md)",
     )
 
 
@@ -225,6 +233,7 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         place=place,
         controller=args.controller,
         approach=args.approach,
+        grasp_model=args.model,
         cycles=cycles,
         out=out,
         record=not args.no_record,

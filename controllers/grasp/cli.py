@@ -30,6 +30,7 @@ from controllers.grasp.trials import (
     run_trials,
     trial_summary,
 )
+from controllers.grasp.trials3d import HeightBand, PrismBatch, run_trials_3d
 from graspsim_base import cli
 from graspsim_base.files import write_text
 
@@ -45,6 +46,8 @@ MAX_STEPS_LIMIT = 10_000
 MAX_GAIN = 10.0
 #: Task wrench components (unit-moment frame, in units of the unit contact force).
 MAX_TASK = 1e6
+#: Default prism height of ``trials --model 3d`` (the simulated blocks' 20 cm, section 5.1).
+DEFAULT_HEIGHT = 0.20
 #: Controllers that read trained models from ``--models``.
 LEARNED = ("ql", "pi", "pi9", "pi5")
 #: Errors the grasp commands report as bad input (one line, exit status 2).
@@ -90,20 +93,23 @@ def cmd_trials(args: argparse.Namespace) -> int:
         composer = make_composer(args.controller, args.models, gain=args.gain)
     else:
         composer = make_composer(args.controller, gain=args.gain)
+    if args.model == "planar" and (args.height is not None or args.depths is not None):
+        raise GraspError("--height and --depths describe the prism: use them with --model 3d")
+    prism = None
+    if args.model == "3d":
+        height = DEFAULT_HEIGHT if args.height is None else args.height
+        lo, hi = (0.0, height) if args.depths is None else args.depths
+        prism = PrismBatch.of([poly], [height], [HeightBand.below_top(height, lo, hi)])
     prepare_json(args)
     rng = np.random.default_rng(args.seed)
     batch = PolygonBatch.of([poly])
     start = time.perf_counter()
-    result = run_trials(
-        [poly],
-        np.zeros(args.trials, dtype=int),
-        composer,
-        rng,
-        n_contacts=args.contacts,
-        max_steps=args.max_steps,
-        gain=args.gain,
-        batch=batch,
-    )
+    settings = {"n_contacts": args.contacts, "max_steps": args.max_steps, "gain": args.gain}
+    index = np.zeros(args.trials, dtype=int)
+    if prism is None:
+        result = run_trials([poly], index, composer, rng, batch=batch, **settings)
+    else:
+        result = run_trials_3d(prism, index, composer, rng, **settings)
     elapsed = time.perf_counter() - start
     summary = trial_summary(result, elapsed)
     summary.update(
@@ -113,20 +119,28 @@ def cmd_trials(args: argparse.Namespace) -> int:
         contacts=args.contacts,
         rotate_deg=args.rotate,
         gain=args.gain,
+        model=args.model,
     )
+    if prism is not None:
+        summary.update(height=float(prism.half_height[0] * prism.scale[0] * 2.0), depths=[lo, hi])
     print(
-        f"{poly.name}: {args.trials} trials, {args.controller}: "
+        f"{poly.name}{' (3d)' if prism is not None else ''}: {args.trials} trials, "
+        f"{args.controller}: "
         f"failure {100 * summary['failure_rate']:.2f} %, "
         f"mean S_G {summary['mean_s_g']:.3f}, mean steps {summary['mean_steps']:.1f}, "
         f"{summary['trials_per_s']:.0f} trials/s"
     )
     unit = batch.polygons[0]
     scale = poly.diameter / unit.diameter  # unit-moment frame -> the polygon's own units
+    # 3-D points: the prism's frame (centroid at the origin), z above its base
+    lift = 0.0 if prism is None else float(prism.half_height[0] * prism.scale[0])
     per_trial = [
         {
             "theta_initial": result.theta_initial[i].tolist(),
             "theta_final": result.theta_final[i].tolist(),
-            "points": (result.points[i] * scale).tolist(),
+            "points": (result.points[i] * scale + [0.0, 0.0, lift][: result.points.shape[-1]])
+            .round(9)
+            .tolist(),
             "s_g": None if not result.feasible[i] else float(result.s_g[i]),
             "feasible": bool(result.feasible[i]),
             "success": bool(result.success[i]),
@@ -277,6 +291,26 @@ def build_parser() -> cli.ArgumentParser:
         metavar="DIR",
         help="folder of a finished `reproduce --out DIR` run whose models --controller "
         "ql|pi|pi9|pi5 use (default: the models shipped in the package)",
+    )
+    t.add_argument(
+        "--model",
+        choices=("planar", "3d"),
+        default="planar",
+        help="planar: the paper's controllers with phi = 0 (its tables); 3d: contacts with "
+        "heights on the sides of a prism (docs/grasp3d_controllers.md)",
+    )
+    t.add_argument(
+        "--height",
+        type=cli.number(0.0, MAX_COORDINATE, lo_open=True),
+        metavar="H",
+        help=f"3d: prism height, the polygon's unit (default {DEFAULT_HEIGHT:g}: the simulated "
+        "blocks' 20 cm for the paper objects, which are in metres)",
+    )
+    t.add_argument(
+        "--depths",
+        type=cli.numbers(2, "LO,HI", 0.0, MAX_COORDINATE),
+        metavar="LO,HI",
+        help="3d: contacts between LO and HI below the top (default: the whole side)",
     )
     cli.add_json_argument(t, "write per-trial results and the summary here")
     t.set_defaults(func=cmd_trials)

@@ -33,7 +33,7 @@ from controllers.grasp.errors import GraspError, UnknownNameError
 from controllers.grasp.predictor import FAILURE_THRESHOLD, FSPredictor, network_input
 from controllers.grasp.qlearning import EPS_FLOOR, N_BINS
 from controllers.grasp.run_folder import TRAIN_HINT
-from controllers.grasp.state import ControlState
+from controllers.grasp.state import ControlState, ControlState3D
 from controllers.grasp.trials import GAIN
 from controllers.grasp.wrench import fc_gradient, mc_gradient
 
@@ -81,7 +81,7 @@ def noise_displacement(
         if state.batch is None:
             raise GraspError("the perimeter reading needs the polygons (ControlState.batch)")
         idx = state.object_index
-        arc = state.batch.arc_of(idx, state.frames)
+        arc = state.batch.arc_of(idx, state.batch.locate(idx, state.theta))
         moved = state.batch.theta_at_arc(idx, arc + state.batch.perimeter[idx][:, None] * noise)
         return np.angle(np.exp(1j * (moved - state.theta)))
     raise UnknownNameError("noise reading", reading, list(NOISE_READINGS))
@@ -143,8 +143,15 @@ class PreImaging:
         return noise_displacement(self.reading, noise, state, self.gain)
 
     def gradient(self, state: ControlState, rng: np.random.Generator) -> NDArray[np.float64]:
+        """The KB gradient, minus the pre-image displacement / gain where failure is predicted.
+        With 3-D contacts (:class:`~controllers.grasp.state.ControlState3D`, gradients (T, 2n))
+        the displacement moves theta as in the plane and leaves the heights to moment closure."""
         grad = self.baseline.gradient(state, rng)
+        if isinstance(state, ControlState3D) and self.action == "predictor":
+            raise GraspError("the predictor-gradient pre-image action is planar only; use noise")
         extra = self.displacement(state, rng)
+        if extra.shape != grad.shape:  # 3-D: no displacement of the heights
+            extra = np.concatenate([extra, np.zeros_like(extra)], axis=1)
         out = self.predictor.failure_expectation(state.eps_fc, state.eps_mc)
         fail = (out > self.threshold) & state.active
         self._triggered += fail

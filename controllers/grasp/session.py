@@ -27,6 +27,7 @@ from controllers.grasp.composition import Composer
 from controllers.grasp.errors import GraspError
 from controllers.grasp.polygon import Polygon, wrap_angle
 from controllers.grasp.score import GraspScore, grasp_score
+from controllers.grasp.state import ControlState, ControlState3D
 from controllers.grasp.trials import (
     CONVERGENCE_STEP,
     GAIN,
@@ -82,7 +83,80 @@ class SynthesisStep:
     moved: float  #: largest contact displacement of the step (rad)
 
 
-class GraspSynthesis:
+class SteppedSynthesis:
+    """What the planar and the 3-D syntheses share: one grasp controller run a step at a time
+    (``theta <- theta - gain * gradient`` of the composer, the convergence test and step limit of
+    the trials). A subclass sets ``composer``, ``rng``, ``gain``, ``max_steps``, ``_theta``
+    (1, n) and ``_state`` and implements :meth:`_move` and :meth:`_evaluate`."""
+
+    composer: Composer
+    rng: np.random.Generator
+    gain: float
+    max_steps: int
+    steps: int = 0
+    converged: bool = False
+    _theta: NDArray[np.float64]
+    _state: ControlState | ControlState3D
+
+    def _move(self, delta: NDArray[np.float64]) -> float:
+        """Add ``delta`` (1, coordinates) to the contacts, keep them where they may be; return
+        the largest move."""
+        raise NotImplementedError
+
+    def _evaluate(self) -> ControlState | ControlState3D:
+        """The controllers' state at the current contacts."""
+        raise NotImplementedError
+
+    def _active(self) -> NDArray[np.bool_]:
+        return np.array([not self.done])
+
+    @property
+    def done(self) -> bool:
+        """The controller converged or used up its steps."""
+        return self.converged or self.steps >= self.max_steps
+
+    @property
+    def theta(self) -> NDArray[np.float64]:
+        """(n,) current contact coordinates (rad)."""
+        return self._theta[0].copy()
+
+    @property
+    def eps_fc(self) -> float:
+        return float(self._state.eps_fc[0])
+
+    @property
+    def eps_mc(self) -> float:
+        return float(self._state.eps_mc[0])
+
+    def predicts_failure(self) -> bool | None:
+        """The composer's F/S predictor (section 4.2) on the current state; None without one."""
+        predictor = getattr(self.composer, "predictor", None)
+        if predictor is None:
+            return None
+        return bool(predictor.predicts_failure(self._state.eps_fc, self._state.eps_mc)[0])
+
+    def step(self) -> SynthesisStep:
+        """One control step (raises :class:`GraspError` once :attr:`done`)."""
+        if self.done:
+            raise GraspError("the grasp controller has already finished")
+        before = self._state
+        predicted = self.predicts_failure()
+        grad = self.composer.gradient(before, self.rng)
+        moved = self._move(-self.gain * grad)
+        self.steps += 1
+        self.converged = moved <= CONVERGENCE_STEP
+        self._state = self._evaluate()
+        return SynthesisStep(
+            step=self.steps,
+            theta=self.theta,
+            eps_fc=float(before.eps_fc[0]),
+            eps_mc=float(before.eps_mc[0]),
+            predicted_failure=predicted,
+            moved=moved,
+        )
+
+
+class GraspSynthesis(SteppedSynthesis):
     """A composite grasp controller acting on ``polygon`` from contacts ``theta_initial``.
 
     ``composer`` is any :class:`Composer` (``kb``, ``ql``, ``pi``); ``rng`` feeds its exploration
@@ -128,64 +202,23 @@ class GraspSynthesis:
         self.steps = 0
         self.converged = False
         self.composer.begin(1, rng)
-        self._state = control_state(self._batch, self._index, self._theta, 0, self._active(), task)
+        self._state = self._evaluate()
 
     def _separate(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         sep = separate_contacts(self.polygon, theta[0], self.min_separation, self.separation_offset)
         return sep[None]
 
-    def _active(self) -> NDArray[np.bool_]:
-        return np.array([not self.done])
-
-    @property
-    def done(self) -> bool:
-        """The controller converged or used up its steps."""
-        return self.converged or self.steps >= self.max_steps
-
-    @property
-    def theta(self) -> NDArray[np.float64]:
-        """(n,) current contact coordinates (rad)."""
-        return self._theta[0].copy()
-
-    @property
-    def eps_fc(self) -> float:
-        return float(self._state.eps_fc[0])
-
-    @property
-    def eps_mc(self) -> float:
-        return float(self._state.eps_mc[0])
-
-    def predicts_failure(self) -> bool | None:
-        """The composer's F/S predictor (section 4.2) on the current state; None without one."""
-        predictor = getattr(self.composer, "predictor", None)
-        if predictor is None:
-            return None
-        return bool(predictor.predicts_failure(self._state.eps_fc, self._state.eps_mc)[0])
-
-    def step(self) -> SynthesisStep:
-        """One control step (raises :class:`GraspError` once :attr:`done`)."""
-        if self.done:
-            raise GraspError("the grasp controller has already finished")
-        before = self._state
-        predicted = self.predicts_failure()
-        grad = self.composer.gradient(before, self.rng)
-        theta = wrap_angle(self._theta - self.gain * grad)
+    def _move(self, delta: NDArray[np.float64]) -> float:
+        theta = wrap_angle(self._theta + delta)
         if self.min_separation > 0:
             theta = self._separate(theta)
         moved = float(np.abs(wrap_angle(theta - self._theta)).max())
         self._theta = theta
-        self.steps += 1
-        self.converged = moved <= CONVERGENCE_STEP
-        self._state = control_state(
+        return moved
+
+    def _evaluate(self) -> ControlState:
+        return control_state(
             self._batch, self._index, self._theta, self.steps, self._active(), self.task
-        )
-        return SynthesisStep(
-            step=self.steps,
-            theta=self.theta,
-            eps_fc=float(before.eps_fc[0]),
-            eps_mc=float(before.eps_mc[0]),
-            predicted_failure=predicted,
-            moved=moved,
         )
 
     def score(self) -> GraspScore:

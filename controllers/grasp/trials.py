@@ -7,8 +7,9 @@ composer move them by ``theta <- theta - gain * gradient`` until no contact move
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -114,6 +115,49 @@ def score_contacts(
     ]
 
 
+@dataclass(frozen=True)
+class Descent:
+    """Where :func:`descend` left a batch of trials: the last state and, per trial, its steps
+    and whether it converged."""
+
+    state: Any
+    steps: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+
+
+def descend(
+    composer: Composer,
+    rng: np.random.Generator,
+    n_trials: int,
+    max_steps: int,
+    gain: float,
+    evaluate: Callable[[int, NDArray[np.bool_]], Any],
+    move: Callable[[NDArray[np.float64], NDArray[np.bool_]], NDArray[np.float64]],
+    before_step: Callable[[int, Any, NDArray[np.bool_]], None] | None = None,
+) -> Descent:
+    """The trials' gradient descent (section 3.6.2), whatever the contacts' coordinates:
+    ``evaluate(step, active)`` gives the controllers' state, ``move(-gain * gradient, active)``
+    moves the active trials' contacts and returns each trial's largest move; a trial converges
+    when that is at most :data:`CONVERGENCE_STEP`, or stops at ``max_steps``."""
+    active = np.ones(n_trials, dtype=bool)
+    steps = np.zeros(n_trials, dtype=np.int64)
+    converged = np.zeros(n_trials, dtype=bool)
+    composer.begin(n_trials, rng)
+    state = evaluate(0, active.copy())
+    for k in range(max_steps):
+        if before_step is not None:
+            before_step(k, state, active)
+        moved = move(-gain * composer.gradient(state, rng), active)
+        steps[active] = k + 1
+        done = active & (moved <= CONVERGENCE_STEP)
+        converged |= done
+        active = active & ~done
+        state = evaluate(k + 1, active.copy())
+        if not active.any():
+            break
+    return Descent(state, steps, converged)
+
+
 def run_trials(
     polygons: Sequence[Polygon],
     object_index: ArrayLike,
@@ -145,27 +189,24 @@ def run_trials(
     else:
         theta = np.array(theta_initial, dtype=float).reshape(n_trials, -1)
     theta0 = theta.copy()
-    active = np.ones(n_trials, dtype=bool)
-    steps = np.zeros(n_trials, dtype=np.int64)
-    converged = np.zeros(n_trials, dtype=bool)
     states = np.full((n_trials, max_steps + 1, 2), np.nan) if record_states else None
-    composer.begin(n_trials, rng)
-    state = control_state(batch, idx, theta, 0, active.copy(), task)
-    for k in range(max_steps):
+    coords = {"theta": theta}
+
+    def evaluate(step: int, active: NDArray[np.bool_]) -> ControlState:
+        return control_state(batch, idx, coords["theta"], step, active, task)
+
+    def move(delta: NDArray[np.float64], active: NDArray[np.bool_]) -> NDArray[np.float64]:
+        d = np.where(active[:, None], delta, 0.0)
+        coords["theta"] = wrap_angle(coords["theta"] + d)
+        return np.abs(d).max(axis=1)
+
+    def record(k: int, state: ControlState, active: NDArray[np.bool_]) -> None:
         if states is not None:
             states[active, k, 0] = state.eps_fc[active]
             states[active, k, 1] = state.eps_mc[active]
-        grad = composer.gradient(state, rng)
-        delta = np.where(active[:, None], -gain * grad, 0.0)
-        theta = wrap_angle(theta + delta)
-        moved = np.abs(delta).max(axis=1)
-        steps[active] = k + 1
-        done = active & (moved <= CONVERGENCE_STEP)
-        converged |= done
-        active = active & ~done
-        state = control_state(batch, idx, theta, k + 1, active.copy(), task)
-        if not active.any():
-            break
+
+    run = descend(composer, rng, n_trials, max_steps, gain, evaluate, move, record)
+    state, steps, converged, theta = run.state, run.steps, run.converged, coords["theta"]
     if states is not None:
         rows = np.arange(n_trials)
         states[rows, steps, 0] = state.eps_fc

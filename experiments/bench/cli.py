@@ -62,7 +62,9 @@ PROG = "python -m experiments.bench"
 #: File of the options a bench folder's results belong to.
 SETTINGS_FILE = "bench.json"
 #: Options that must match for ``--resume`` to add to a folder's results.
-RESUME_KEYS = ("scene", "blocks", "controller", "approach", "models")
+RESUME_KEYS = ("scene", "blocks", "controller", "approach", "grasp_model", "models")
+#: Settings a bench written before they existed had (its value then).
+SETTING_DEFAULTS = {"grasp_model": "planar"}
 #: Most episodes one command may ask for.
 MAX_EPISODES = 100_000
 MAX_WORKERS = 1024
@@ -211,7 +213,7 @@ def _check_resume(out: Path, settings: dict[str, Any], resume: bool) -> list[dic
             saved = None
         if not isinstance(saved, dict):
             raise BenchError(f"{saved_path} is not a bench's settings file; give another --out")
-        differ = [k for k in RESUME_KEYS if saved.get(k) != settings[k]]
+        differ = [k for k in RESUME_KEYS if saved.get(k, SETTING_DEFAULTS.get(k)) != settings[k]]
         if differ:
             was = ", ".join(
                 f"--{k} {saved[k]}" if saved.get(k) is not None else f"no --{k}" for k in differ
@@ -260,6 +262,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "blocks": None if blocks is None else str(blocks),
         "controller": args.controller,
         "approach": args.approach,
+        "grasp_model": args.model,
         "models": models,
     }
     done = _check_resume(out, settings, args.resume)
@@ -271,6 +274,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             blocks=None if blocks is None else blocks_for_seed(s, blocks.low, blocks.high),
             controller=args.controller,
             approach=args.approach,
+            grasp_model=args.model,
             models=models,
             keep_rrd=args.keep_rrd,
         )

@@ -61,6 +61,7 @@ class Job:
     blocks: int | None = None  #: blocks of a random scene (None: the generator's default)
     controller: str = "pi"
     approach: str = "auto"
+    grasp_model: str = "planar"  #: "planar" or "3d" (fsm.run --model)
     models: str | None = None  #: trained models folder (None: the shipped ones)
     keep_rrd: bool = False  #: return the recording of a success too
 
@@ -106,6 +107,7 @@ def run_job(job: Job) -> JobResult:
             blocks=job.blocks,
             controller=job.controller,
             approach=job.approach,
+            grasp_model=job.grasp_model,
             cycles=1,
             out=Path(tmp),
             record=True,

@@ -38,12 +38,16 @@ def object_list(text: str) -> tuple[str, ...]:
 def run(args: argparse.Namespace) -> int:
     # lazy: the physical study needs MuJoCo and the hand, which the grasp core does not import
     from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, run_study, write_report
+    from experiments.physics.synthesis import MODELS
 
+    models = MODELS if args.model == "both" else (args.model,)
+    if args.depth is not None and models != ("planar",):
+        raise cli.CommandLineError("--depth", "it places a planar grasp: use --model planar")
     cli.prepare_dir(args.out, "--out")
     objects = QUICK_OBJECTS if args.quick and args.objects is None else args.objects
     objects = PAPER_OBJECTS if objects is None else objects
     grasps = QUICK_GRASPS if args.quick and args.grasps is None else (args.grasps or 50)
-    total = len(objects) * 3 * grasps
+    total = len(models) * len(objects) * 3 * grasps
     from tqdm import tqdm
 
     t0 = time.perf_counter()
@@ -51,7 +55,15 @@ def run(args: argparse.Namespace) -> int:
         cli.partial_results_in(args.out),
         tqdm(total=total, unit="grasp", disable=not sys.stderr.isatty()) as bar,
     ):
-        results = run_study(objects, grasps, args.seed, args.workers, progress=bar.update)
+        results = run_study(
+            objects,
+            grasps,
+            args.seed,
+            args.workers,
+            progress=bar.update,
+            models=models,
+            depth=args.depth,
+        )
         summary = write_report(
             args.out,
             results,
@@ -60,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
             args.seed,
             f"{PROG} {args.argv}",
             time.perf_counter() - t0,
+            models=models,
         )
     print(
         f"{total} grasps, {summary['tested']} tested physically, {summary['held']} held; "
@@ -90,6 +103,22 @@ def build_parser() -> cli.ArgumentParser:
         type=cli.integer(1, 10_000),
         metavar="N",
         help="grasps per object and controller, 1..10000 (default 50; with --quick 4)",
+    )
+    ph.add_argument(
+        "--model",
+        choices=("planar", "3d", "both"),
+        default="planar",
+        help="the grasp model the controllers run on: planar (the paper's phi = 0, contacts at "
+        "the fingertips' height), 3d (contacts with heights on the prism's sides, in the band a "
+        "top grasp reaches) or both, from the same starts (default planar; "
+        "docs/grasp3d_physics.md)",
+    )
+    ph.add_argument(
+        "--depth",
+        type=cli.number(0.02, 0.15),
+        metavar="M",
+        help="planar model: take every contact M metres below the block's top instead of at "
+        "its fingertip's height, 0.02..0.15 (the probe behind the 3-D band)",
     )
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)

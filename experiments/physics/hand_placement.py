@@ -116,9 +116,11 @@ def top_postures(
     *,
     palm_gaps: tuple[float, ...] = PALM_GAPS,
     yaws: int = YAWS,
+    depths: tuple[float, ...] = (GRASP_DEPTH,),
 ) -> list[HandPosture]:
     """The palm-down seed postures over ``target`` (those the arm's IK reaches), from the world's
-    current state; each hand pre-shaped with its fingertips on the block's faces."""
+    current state; each hand pre-shaped with its fingertips on the block's faces at each of
+    ``depths`` (m below the top; default the task cycle's grasp depth)."""
     if yaws < 1:
         raise ValueError(f"yaws must be >= 1, got {yaws}")
     model = world.model
@@ -128,7 +130,7 @@ def top_postures(
     waist = float(np.arctan2(target.position_xy[1] - base[1], target.position_xy[0] - base[0]))
     data = mujoco.MjData(model)
     out = []
-    for gap, k in itertools.product(palm_gaps, range(yaws)):
+    for gap, k, depth in itertools.product(palm_gaps, range(yaws), depths):
         pos = np.array([*target.position_xy, target.top_z + gap])
         yaw = target.yaw + 2.0 * np.pi * k / yaws
         ik = checker.solve_ik(pos, _palm_down(yaw), [waist, *ARM_SEED])
@@ -137,9 +139,9 @@ def top_postures(
         qpos = world.data.qpos.copy()
         qpos[arm_adr] = ik.q
         qpos[hand_adr] = PRESHAPE
-        # the preshape's tips, raised (or lowered) to the grasp depth below the top
+        # the preshape's tips, raised (or lowered) to the depth below the top
         at_depth = fingertips_at(model, qpos)
-        at_depth[:, 2] = target.top_z - GRASP_DEPTH
+        at_depth[:, 2] = target.top_z - depth
         surface = project_to_surface(target, at_depth, table_z=world.scene.table.height)
         tips, centres = grip_targets(surface.points, surface.normals, 0.0)
         hand = solve_posture(
@@ -155,25 +157,35 @@ def top_postures(
 
 
 def ranked_starts(
-    target: ReachTarget, theta: ArrayLike, postures: list[HandPosture], table_z: float
+    target: ReachTarget,
+    theta: ArrayLike,
+    postures: list[HandPosture],
+    table_z: float,
+    heights: ArrayLike | None = None,
 ) -> list[tuple[HandPosture, FingerContacts]]:
     """Every (seed posture, contacts given to its fingers) pair, best first: the pairs whose
     every pad faces its contact's face within :data:`MAX_PAD_ANGLE` at the seed's pre-shape
-    before the others, then by total squared fingertip-to-contact distance."""
+    before the others, then by total squared fingertip-to-contact distance. Each contact is at
+    the height of the fingertip it is given to (a planar grasp) or, with ``heights`` (n,),
+    world z per contact, at its own height (a 3-D grasp)."""
     th = np.asarray(theta, dtype=float)
     keys, pairs = [], []
     for i, p in enumerate(postures):
         xy, nxy, z = contacts_at_tips(target, th, p.tips, table_z)
-        points = np.concatenate(
-            [xy[ORDERS], np.broadcast_to(z[None, :, None], (len(ORDERS), 4, 1))], axis=2
+        # finger f's height in assignment k: its tip's, or the height of the contact it takes
+        zk = (
+            np.broadcast_to(z[None, :], (len(ORDERS), 4))
+            if heights is None
+            else np.asarray(heights, dtype=float)[ORDERS]
         )
+        points = np.concatenate([xy[ORDERS], zk[:, :, None]], axis=2)
         distance = ((points - p.tips[None]) ** 2).sum(axis=(1, 2))
         # cosine between each pad normal and its contact's inward (horizontal) face normal
         cosine = -np.einsum("kfd,fd->kf", nxy[ORDERS], p.pads[:, :2])
         turned_away = (cosine < np.cos(MAX_PAD_ANGLE)).any(axis=1)
         for k in range(len(ORDERS)):
             keys.append((bool(turned_away[k]), float(distance[k])))
-            pairs.append((i, k, xy, nxy, z))
+            pairs.append((i, k, xy, nxy, zk[k]))
     out = []
     for j in sorted(range(len(keys)), key=keys.__getitem__):
         i, k, xy, nxy, z = pairs[j]
@@ -190,17 +202,19 @@ def place_hand(
     *,
     seeds: int = SEEDS_TRIED,
     checker: CollisionChecker | None = None,
+    heights: ArrayLike | None = None,
 ) -> Placement:
     """Posture Control from the first ``seeds`` of :func:`ranked_starts` for contacts ``theta``
     (contact coordinates on ``target``'s polygon): the task cycle's IK seeding
     (:func:`controllers.palm_pose.search_seeds`) with these starts, the palm's tilt measured
     from vertical; see the module docstring. ``checker``: the world's collision checker, for
-    the palm's pose (default: built here)."""
+    the palm's pose (default: built here). ``heights``: world z of each contact (a 3-D grasp;
+    default: each at the height of its finger's tip, a planar grasp)."""
     if not postures:
         return Placement(False, "the arm reaches no palm-down posture over the block")
     th = np.asarray(theta, dtype=float)
     checker = CollisionChecker(world) if checker is None else checker
-    pairs = ranked_starts(target, th, postures, prism.bottom)[:seeds]
+    pairs = ranked_starts(target, th, postures, prism.bottom, heights)[:seeds]
     found = search_seeds(
         ReachQuery(world, None, prism, target),
         th,

@@ -1,10 +1,6 @@
 """The physical grasp study end to end: grasps on a process pool, the ROC of S_G as a predictor of
-a physical hold, the report and its figures (``python -m controllers.grasp physics``).
-
-ROC and AUC are computed here with numpy (no scikit-learn): the AUC is the Mann-Whitney
-probability that a held grasp has a lower S_G than a dropped one (ties count one half); an
-infeasible S_G counts as the worst. The best-separating threshold maximises Youden's J = TPR - FPR
-over the observed S_G values, predicting "holds" for S_G <= threshold.
+a physical hold (:mod:`experiments.physics.roc`), the report and its figures
+(``python -m experiments.physics``).
 """
 
 from __future__ import annotations
@@ -13,12 +9,13 @@ import json
 import os
 from collections.abc import Sequence
 from contextlib import closing
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from controllers.grasp.objects import PAPER_OBJECTS
+from experiments.physics.compare import measures_figure, measures_section
+from experiments.physics.roc import Roc, rates_at, roc
 from experiments.physics.study import (
     DIRECTIONS,
     FORCE_TIME,
@@ -43,85 +40,36 @@ QUICK_GRASPS = 4
 PICTURES = 4
 
 
-@dataclass(frozen=True)
-class Roc:
-    """ROC of "S_G <= t predicts a hold" over the tested grasps."""
-
-    fpr: np.ndarray
-    tpr: np.ndarray
-    thresholds: np.ndarray
-    auc: float
-    best_threshold: float
-    best_j: float
-    positives: int
-    negatives: int
-
-
-def sg_for_ranking(s_g: Sequence[float | None]) -> np.ndarray:
-    """S_G with an infeasible grasp (None) as +inf."""
-    return np.array([np.inf if s is None else float(s) for s in s_g])
-
-
-def auc_mann_whitney(held: np.ndarray, dropped: np.ndarray) -> float:
-    """P(S_G of a held grasp < S_G of a dropped one) + 0.5 P(equal), from ranks."""
-    from scipy.stats import rankdata
-
-    n1, n0 = len(held), len(dropped)
-    if n1 == 0 or n0 == 0:
-        return float("nan")
-    ranks = rankdata(np.concatenate([-held, -dropped]))  # higher rank = lower S_G
-    u = ranks[:n1].sum() - n1 * (n1 + 1) / 2.0
-    return float(u / (n1 * n0))
-
-
-def roc(s_g: Sequence[float | None], held: Sequence[bool]) -> Roc:
-    """The ROC curve, AUC and best (Youden) threshold; see the module docstring."""
-    s = sg_for_ranking(s_g)
-    y = np.asarray(held, dtype=bool)
-    pos, neg = int(y.sum()), int((~y).sum())
-    finite = np.unique(s[np.isfinite(s)])
-    thresholds = np.concatenate([[-np.inf], finite, [np.inf]])
-    tpr = np.array([(s[y] <= t).sum() / max(pos, 1) for t in thresholds])
-    fpr = np.array([(s[~y] <= t).sum() / max(neg, 1) for t in thresholds])
-    j = tpr - fpr
-    k = int(np.argmax(j[1:-1])) + 1 if len(thresholds) > 2 else 0
-    return Roc(
-        fpr,
-        tpr,
-        thresholds,
-        auc_mann_whitney(s[y], s[~y]),
-        float(thresholds[k]),
-        float(j[k]),
-        pos,
-        neg,
-    )
-
-
-def rates_at(s_g: Sequence[float | None], held: Sequence[bool], t: float) -> tuple[float, float]:
-    """(TPR, FPR) of "S_G <= t predicts a hold"."""
-    s = sg_for_ranking(s_g)
-    y = np.asarray(held, dtype=bool)
-    tp = float((s[y] <= t).mean()) if y.any() else float("nan")
-    fp = float((s[~y] <= t).mean()) if (~y).any() else float("nan")
-    return tp, fp
-
-
-def jobs_for(objects: Sequence[str], grasps: int, seed: int) -> list[Job]:
+def jobs_for(
+    objects: Sequence[str],
+    grasps: int,
+    seed: int,
+    models: Sequence[str] = ("planar",),
+    depth: float | None = None,
+) -> list[Job]:
+    """The study's chunks: per model, object and controller (the same starts for every model)."""
     out = []
-    for obj in objects:
-        o_index = PAPER_OBJECTS.index(obj)
-        for ci, ctrl in enumerate(CONTROLLERS):
-            for start in range(0, grasps, CHUNK):
-                idx = tuple(range(start, min(grasps, start + CHUNK)))
-                out.append(Job(obj, o_index, ctrl, ci, idx, seed))
+    for model in models:
+        for obj in objects:
+            o_index = PAPER_OBJECTS.index(obj)
+            for ci, ctrl in enumerate(CONTROLLERS):
+                for start in range(0, grasps, CHUNK):
+                    idx = tuple(range(start, min(grasps, start + CHUNK)))
+                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model, depth))
     return out
 
 
 def run_study(
-    objects: Sequence[str], grasps: int, seed: int, workers: int = 2, progress=None
+    objects: Sequence[str],
+    grasps: int,
+    seed: int,
+    workers: int = 2,
+    progress=None,
+    models: Sequence[str] = ("planar",),
+    depth: float | None = None,
 ) -> list[dict]:
-    """Every grasp, in a fixed order (object, controller, index) whatever the workers."""
-    jobs = jobs_for(objects, grasps, seed)
+    """Every grasp, in a fixed order (model, object, controller, index) whatever the workers."""
+    jobs = jobs_for(objects, grasps, seed, models, depth)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:
@@ -228,6 +176,8 @@ def render_grasp(entry: dict, seed: int, path: Path) -> bool:
         CONTROLLERS.index(entry["controller"]),
         (entry["index"],),
         seed,
+        entry.get("model", "planar"),
+        entry.get("depth"),
     )
     renderer: list = []
 
@@ -284,6 +234,7 @@ def write_report(
     command: str,
     seconds: float,
     pictures: int = PICTURES,
+    models: Sequence[str] = ("planar",),
 ) -> dict:
     """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures."""
     out.mkdir(parents=True, exist_ok=True)
@@ -303,10 +254,12 @@ def write_report(
         if r["result"] == "dropped" and r["s_g"] is not None and r["s_g"] <= PAPER_THRESHOLD
     ]
     drawn = []
-    for r in false_pos[:pictures]:
-        name = f"dropped_{r['object']}_{r['controller']}_{r['index']}.png"
-        if render_grasp(r, seed, out / name):
-            drawn.append((name, r))
+    for m in models:  # up to ``pictures`` of each model
+        for r in [r for r in false_pos if r.get("model", "planar") == m][:pictures]:
+            prefix = "" if m == "planar" else f"{m}_"
+            name = f"dropped_{prefix}{r['object']}_{r['controller']}_{r['index']}.png"
+            if render_grasp(r, seed, out / name):
+                drawn.append((name, r))
     summary = {
         "command": command,
         "objects": list(objects),
@@ -321,7 +274,11 @@ def write_report(
         "tpr_fpr_at_0.4": [tpr04, fpr04],
         "tpr_fpr_at_best": [tprb, fprb],
         "false_positives": len(false_pos),
+        "models": list(models),
     }
+    compare_md, summary["measures"] = measures_section(results, tuple(models))
+    if tested:
+        measures_figure(results, out / "roc_measures.png")
     write_text(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     stages = ", ".join(f"{d}" for d, _ in DIRECTIONS)
     md = [
@@ -335,9 +292,16 @@ def write_report(
         f"within {MAX_SHIFT * 100:.0f} cm and {np.degrees(MAX_TURN):.0f} deg of its pose in the "
         "palm's frame throughout.",
         "",
-        summary_tables(results, objects),
+        *(
+            f"### Model: {m}\n\n"
+            + summary_tables([r for r in results if r["model"] == m], objects)
+            + "\n"
+            for m in models
+        ),
         "",
-        "## S_G as a predictor (tested grasps)",
+        *compare_md,
+        "",
+        "## S_G of the synthesized contacts as a predictor (tested grasps, all models)",
         "",
         f"AUC {curve.auc:.3f} ({curve.positives} held, {curve.negatives} dropped). "
         f"Best-separating threshold (Youden J = {curve.best_j:.3f}): S_G <= "
@@ -352,17 +316,18 @@ def write_report(
         "",
     ]
     md += [
-        "| object | controller | grasp | S_G | lost under | shift (cm) | turn (deg) |",
-        "|---|---|---:|---:|---|---:|---:|",
+        "| model | object | controller | grasp | S_G | lost under | shift (cm) | turn (deg) |",
+        "|---|---|---|---:|---:|---|---:|---:|",
     ]
     for r in false_pos:
         st = r["failed_stage"]
         md.append(
-            f"| {r['object']} | {r['controller']} | {r['index']} | {r['s_g']:.3f} | {st} "
+            f"| {r['model']} | {r['object']} | {r['controller']} | {r['index']} | {r['s_g']:.3f} "
+            f"| {st} "
             f"| {r['shift'].get(st, float('nan')) * 100:.1f} "
             f"| {np.degrees(r['turn'].get(st, float('nan'))):.1f} |"
         )
     for name, r in drawn:
-        md += ["", f"![{r['object']} {r['controller']} {r['index']}]({name})"]
+        md += ["", f"![{r['model']} {r['object']} {r['controller']} {r['index']}]({name})"]
     write_text(out / "report.md", "\n".join(md) + "\n")
     return summary

@@ -37,13 +37,13 @@ from controllers.errors import ReachError
 from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
-from controllers.grasp.session import GraspSynthesis
-from controllers.grip import close, plan_grip, squeeze
-from controllers.hand_reach import CONTACT_SEPARATION
+from controllers.grip import GRIP_FORCE, close, plan_grip, squeeze
 from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from controllers.transport import LIFT_HEIGHT, lift
 from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
+from experiments.physics.measures import grasp_measures, held_contacts
+from experiments.physics.synthesis import grasp_depths, synthesize
 from hand_sim import robot
 from hand_sim.errors import SimulationError
 from hand_sim.indices import RobotIndices
@@ -82,7 +82,11 @@ class GraspOutcome:
     controller: str
     index: int
     theta_initial: list[float]
+    model: str = "planar"  #: the grasp model the controller ran on ("planar" or "3d")
+    depth: float | None = None  #: planar: every contact this far (m) below the top (--depth)
     theta: list[float] = field(default_factory=list)  #: final contact coordinates
+    #: 3-D model: the controller's contact heights above the block's centre of mass (m)
+    heights: list[float] = field(default_factory=list)
     steps: int = 0
     converged: bool = False
     s_g: float | None = None  #: None: the S_G LP is infeasible
@@ -98,6 +102,8 @@ class GraspOutcome:
     #: per stage reached: the largest shift and turn of the block in the palm's frame
     shift: dict[str, float] = field(default_factory=dict)
     turn: dict[str, float] = field(default_factory=dict)
+    #: the grasp as held at the end of the squeeze, scored (experiments.physics.measures)
+    measures: dict = field(default_factory=dict)
 
     @property
     def tested(self) -> bool:
@@ -169,7 +175,9 @@ class StudyWorld:
     checker: CollisionChecker
 
     @classmethod
-    def of(cls, obj: str) -> StudyWorld:
+    def of(cls, obj: str, model: str = "planar") -> StudyWorld:
+        """``obj``'s world; the hand's seed postures pre-shaped at the depths ``model``'s
+        contacts take (planar: the task cycle's grasp depth; 3-D: both ends of its band)."""
         world = World.build(load_scene(f"single_{obj}"))
         name = world.scene.target
         target = ReachTarget.from_world(world, name)
@@ -179,7 +187,7 @@ class StudyWorld:
             name,
             target,
             prism,
-            top_postures(world, target),
+            top_postures(world, target, depths=grasp_depths(model)),
             CollisionChecker(world),
         )
 
@@ -274,25 +282,35 @@ def test_grasp(
     rng: np.random.Generator,
     out: GraspOutcome,
     snapshot: Snapshot | None = None,
+    depth: float | None = None,
 ) -> GraspOutcome:
-    """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``."""
+    """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``.
+    ``depth`` (planar model): every contact that far (m) below the top."""
     world = sw.world
     world.reset()
-    syn = GraspSynthesis(
+    spec = world.scene.block(sw.name)
+    body = world.block_body_id(sw.name)
+    load = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
+    load /= GRIP_FORCE
+    syn = synthesize(
+        out.model,
         sw.target.polygon,
+        spec.height,
         composer,
         out.theta_initial,
         rng,
-        min_separation=CONTACT_SEPARATION,
-        separation_offset=robot.PAD_RADIUS,
+        load=load,
+        yaw=-sw.target.yaw,
     )
-    while not syn.done:
-        syn.step()
-    score = syn.finish()
     out.theta = [round(float(t), 6) for t in syn.theta]
-    out.steps, out.converged = syn.steps, bool(syn.converged)
-    out.s_g = float(score.s_g) if score.feasible else None
-    placed = place_hand(world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker)
+    out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
+    heights = None if depth is None else np.full(len(syn.theta), sw.target.top_z - depth)
+    if syn.heights is not None:
+        out.heights = [round(float(z), 6) for z in syn.heights]
+        heights = sw.target.top_z - 0.5 * spec.height + syn.heights
+    placed = place_hand(
+        world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
+    )
     if not placed.reachable:
         out.result, out.reason = "unreachable", placed.reason
         return out
@@ -324,6 +342,9 @@ def test_grasp(
         sq = squeeze(world, grip)
         out.squeeze_settled = bool(sq.settled)
         out.grip_force = [round(float(f), 3) for f in sq.touch]
+        points = held_contacts(world, sw.name)
+        if points is not None:
+            out.measures = grasp_measures(points, sw.target.polygon, sw.target.yaw, load).to_json()
         physical_test(sw, grip, out, snapshot)
     except SimulationError as e:
         out.result, out.reason = "sim error", str(e)
@@ -344,6 +365,10 @@ class Job:
     controller_index: int
     indices: tuple[int, ...]
     seed: int
+    model: str = "planar"
+    #: planar model only: take every contact this far (m) below the top instead of at its
+    #: fingertip's height (the probe behind the 3-D band, docs/grasp3d_physics.md)
+    depth: float | None = None
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -355,12 +380,12 @@ def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Gener
 
 def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     """Every grasp of ``job``, as JSON-ready dicts, in index order."""
-    sw = StudyWorld.of(job.obj)
+    sw = StudyWorld.of(job.obj, job.model)
     composer = make_composer(job.controller)
     out = []
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
-        o = GraspOutcome(job.obj, job.controller, i, theta0)
-        test_grasp(sw, composer, rng, o, snapshot)
+        o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model, depth=job.depth)
+        test_grasp(sw, composer, rng, o, snapshot, depth=job.depth)
         out.append(o.to_json())
     return out

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
 from controllers.grasp.session import separate_contacts
+from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
@@ -63,7 +64,7 @@ def block_site(ep: Episode) -> BlockSite:
 def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
     """The reach test's inputs for this cycle's block; ``sampled``: the hand IK starts from the
     episode's sampled finger postures (always in a palm-pose search; in Wrench Closure's checks
-    only for a lateral grasp)."""
+    only for a lateral grasp). A 3-D grasp's contacts are taken at their own heights."""
     lateral = slides(ep)
     return ReachQuery(
         ep.world,
@@ -73,7 +74,16 @@ def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
         slide=lateral,
         samples=finger_samples(ep) if sampled or lateral else None,
         squeeze=squeeze_reach(ep),
+        heights=contact_heights(ep),
     )
+
+
+def contact_heights(ep: Episode) -> NDArray[np.float64] | None:
+    """World z of the 3-D grasp's contacts (None for a planar grasp: the fingers' heights)."""
+    syn = ep.synthesis
+    if not isinstance(syn, GraspSynthesis3D):
+        return None
+    return 0.5 * (ep.prism.bottom + ep.prism.top) + syn.heights
 
 
 def plan_approach(
@@ -84,11 +94,12 @@ def plan_approach(
 
 
 def contact_points(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """World points (n, 3) of contacts ``theta`` on the perceived polygon, at the top's height
-    less 3 cm (for drawing)."""
+    """World points (n, 3) of contacts ``theta`` on the perceived polygon, at a 3-D grasp's
+    contact heights, else at the top's height less 3 cm (for drawing)."""
     frames = ep.target.polygon.locate(theta)
     xy = place_polygon(frames.point, ep.target.position_xy, ep.target.yaw)
-    return np.column_stack([xy, np.full(len(xy), ep.target.top_z - 0.03)])
+    z = contact_heights(ep)
+    return np.column_stack([xy, np.full(len(xy), ep.target.top_z - 0.03) if z is None else z])
 
 
 def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:

@@ -106,6 +106,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
                 model=ep.planning,
                 qpos=seed,
                 tries=1,
+                heights=query.heights,
                 give_up=True,  # only the assignment is used
             )
             yield SeedStart(label, seed, contacts)

@@ -4,15 +4,48 @@ polygon until it converges, while the hand's reachability of the contacts is che
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
-from controllers.fine_reach import project_to_surface
+from controllers.fine_reach import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
 from controllers.grasp.session import GraspSynthesis
+from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.trials3d import HeightBand
+from controllers.grip import GRIP_FORCE
 from controllers.hand_reach import CONTACT_SEPARATION, MIN_PAD_SPACING, reachable_contacts
 from fsm.context import Episode
-from fsm.handlers.common import contact_points, reach_query
+from fsm.handlers.common import contact_points, reach_query, slides
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
+
+
+def synthesis_for(
+    ep: Episode, theta: NDArray[np.float64], tips_z: NDArray[np.float64]
+) -> GraspSynthesis | GraspSynthesis3D:
+    """This cycle's grasp controller from contacts ``theta``: planar, or, for a top grasp with
+    ``--model 3d`` on a block tall enough for the band, 3-D from the fingertips' heights
+    ``tips_z`` (world), in the band :data:`~controllers.fine_reach.TOP_GRASP_DEPTHS` below the
+    top and above the table margin, the common height set by the task (the perceived weight
+    over the grip force; the pushes along the world's axes)."""
+    separation = {"min_separation": CONTACT_SEPARATION, "separation_offset": robot.PAD_RADIUS}
+    height = ep.prism.top - ep.prism.bottom
+    low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
+    high = height - TOP_GRASP_DEPTHS[0]
+    if ep.options.grasp_model != "3d" or slides(ep) or low > high:
+        return GraspSynthesis(ep.target.polygon, ep.composer, theta, ep.rng, **separation)
+    com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
+    return GraspSynthesis3D(
+        ep.target.polygon,
+        height,
+        HeightBand(low, high),
+        ep.composer,
+        theta,
+        np.asarray(tips_z, dtype=float) - com_z,
+        ep.rng,
+        load=ep.expected_load / GRIP_FORCE,
+        yaw=-ep.target.yaw,
+        **separation,
+    )
 
 
 def wrench_closure(ep: Episode) -> Step:
@@ -24,15 +57,9 @@ def wrench_closure(ep: Episode) -> Step:
     table_z = world.scene.table.height
     record = ep.record
     if ep.synthesis is None:
-        start = project_to_surface(ep.target, world.fingertip_positions(), table_z=table_z)
-        ep.synthesis = GraspSynthesis(
-            ep.target.polygon,
-            ep.composer,
-            start.theta,
-            ep.rng,
-            min_separation=CONTACT_SEPARATION,
-            separation_offset=robot.PAD_RADIUS,
-        )
+        tips = world.fingertip_positions()
+        start = project_to_surface(ep.target, tips, table_z=table_z)
+        ep.synthesis = synthesis_for(ep, start.theta, tips[:, 2])
     syn = ep.synthesis
     while True:
         if not syn.done:
@@ -60,6 +87,7 @@ def wrench_closure(ep: Episode) -> Step:
             slide=query.slide,
             samples=query.samples,
             squeeze=query.squeeze,
+            heights=query.heights,
             # an unreachable top grasp only needs the verdict (a lateral one keeps its heights)
             give_up=not query.slide,
         )
@@ -75,6 +103,17 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done:
             break
     score = syn.finish()
+    # the final contacts (at their heights in 3-D) with their S_G (3-D S_G in 3-D)
+    ep.recorder.log_synthesis(
+        SynthesisRecord(
+            syn.steps,
+            syn.eps_fc,
+            syn.eps_mc,
+            None,
+            contact_points(ep, syn.theta),
+            float(score.s_g) if score.feasible else None,
+        )
+    )
     record.converged = syn.converged
     record.s_g = float(score.s_g) if score.feasible else None
     record.contacts = ep.contacts.points.round(5).tolist()

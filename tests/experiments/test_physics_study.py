@@ -18,7 +18,8 @@ from controllers.cspace import PALM_SITE
 from controllers.finger_geometry import fingertips_at, pad_normals
 from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
 from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
-from experiments.physics.report import QUICK_GRASPS, QUICK_OBJECTS, auc_mann_whitney, roc
+from experiments.physics.report import QUICK_OBJECTS
+from experiments.physics.roc import auc_mann_whitney, roc
 from experiments.physics.study import (
     MAX_SHIFT,
     MAX_TURN,
@@ -29,6 +30,7 @@ from experiments.physics.study import (
     physical_test,
     run_job,
 )
+from experiments.physics.synthesis import TOP_GRASP_DEPTHS
 from hand_sim.indices import RobotIndices
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,7 +51,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory) -> tuple[Path, list[dict], dict]:
     out = tmp_path_factory.mktemp("physics") / "run"
-    run = _cli("--out", str(out), "--quick", "--workers", "2")
+    run = _cli("--out", str(out), "--quick", "--model", "both", "--grasps", "2", "--workers", "2")
     assert run.returncode == 0, run.stderr
     results = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     return out, results, json.loads((out / "summary.json").read_text())
@@ -58,8 +60,8 @@ def quick(tmp_path_factory) -> tuple[Path, list[dict], dict]:
 @pytest.mark.e2e
 def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -> None:
     out, results, summary = quick
-    assert len(results) == len(QUICK_OBJECTS) * 3 * QUICK_GRASPS
-    keys = {(r["object"], r["controller"], r["index"]) for r in results}
+    assert len(results) == 2 * len(QUICK_OBJECTS) * 3 * 2  # both models, 2 grasps each
+    keys = {(r["model"], r["object"], r["controller"], r["index"]) for r in results}
     assert len(keys) == len(results)
     outcomes = {r["result"] for r in results}
     assert outcomes <= {"held", "dropped", "unreachable", "not closed", "sim error"}
@@ -77,10 +79,26 @@ def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -
     for r in results:
         if r["result"] == "unreachable":
             assert r["reason"] and not r["shift"]
+    for r in tested:  # scored as held: four real contacts, the same grasp's three measures
+        m = r["measures"]
+        assert len(m["heights"]) == 4 and m["worst_stage"]
+        assert m["sg3d"] is None or m["worst_sg3d"] is None or m["worst_sg3d"] >= m["sg3d"] - 1e-6
+    for r in results:
+        if r["model"] == "3d":  # the controller's heights lie in the top grasp's band
+            depth = 0.1 - np.array(r["heights"])  # 20 cm blocks: CoM 10 cm below the top
+            assert np.all(
+                (depth >= TOP_GRASP_DEPTHS[0] - 1e-6) & (depth <= TOP_GRASP_DEPTHS[1] + 1e-6)
+            )
+        else:
+            assert r["heights"] == []
     assert summary["tested"] == len(tested)
     assert summary["held"] == sum(r["result"] == "held" for r in tested)
     report = (out / "report.md").read_text()
-    assert "S_G as a predictor" in report and (out / "roc.png").stat().st_size > 1000
+    assert "S_G of the synthesized contacts as a predictor" in report
+    assert (out / "roc.png").stat().st_size > 1000
+    assert (out / "roc_measures.png").stat().st_size > 1000
+    assert "### Model: 3d" in report and "3-D S_G, worst test task" in report
+    assert set(summary["measures"]) == {"planar_sg", "sg3d", "worst_sg3d"}
 
 
 @pytest.mark.e2e
@@ -89,9 +107,14 @@ def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> No
     obj = QUICK_OBJECTS[0]
     from controllers.grasp.objects import PAPER_OBJECTS
 
-    [alone] = run_job(Job(obj, PAPER_OBJECTS.index(obj), "pi", 2, (1,), 0))
-    [pooled] = [r for r in results if (r["object"], r["controller"], r["index"]) == (obj, "pi", 1)]
-    assert alone == pooled
+    for model in ("planar", "3d"):
+        [alone] = run_job(Job(obj, PAPER_OBJECTS.index(obj), "pi", 2, (1,), 0, model))
+        [pooled] = [
+            r
+            for r in results
+            if (r["model"], r["object"], r["controller"], r["index"]) == (model, obj, "pi", 1)
+        ]
+        assert alone == pooled
 
 
 def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() -> None:
@@ -150,3 +173,20 @@ def test_bad_objects_are_refused_with_one_line_and_nothing_written(tmp_path: Pat
     assert run.returncode == 2
     assert "circle" not in run.stdout and len(run.stderr.strip().splitlines()) == 1
     assert "valid" in run.stderr and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--model", "3d", "--depth", "0.06"), "--depth"),
+        (("--depth", "0.5"), "--depth"),
+        (("--model", "flat"), "--model"),
+    ],
+)
+def test_bad_model_or_depth_is_refused_with_one_line_and_nothing_written(
+    tmp_path: Path, args, message
+) -> None:
+    out = tmp_path / "never"
+    run = _cli("--out", str(out), *args)
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1
+    assert message in run.stderr and not out.exists()

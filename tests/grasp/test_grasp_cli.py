@@ -178,3 +178,48 @@ def test_3d_score_is_the_librarys_on_the_prism_and_sees_the_twist(tmp_path):
     twist = run("score", "--polygon", square, "--points", line, "--height", "0.2",
                 "--task", "0.1,0,0,0.1,0,0")  # fmt: skip
     assert twist.returncode == 0 and twist.stdout.startswith("infeasible"), twist.stdout
+
+
+def test_3d_trials_json_points_are_on_the_prism_in_the_band_and_score_as_the_score_command(
+    tmp_path,
+):
+    out = tmp_path / "r3.json"
+    p = run(
+        "trials", "--model", "3d", "--object", "pentagon", "--controller", "kb",
+        "--trials", "12", "--depths", "0.04,0.07", "--json", str(out),
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert "pentagon (3d): 12 trials, kb: failure" in p.stdout
+    data = json.loads(out.read_text())
+    assert data["summary"]["model"] == "3d" and data["summary"]["height"] == pytest.approx(0.2)
+    poly = paper_object("pentagon")
+    t = next(t for t in data["trials"] if t["feasible"])
+    pts = np.array(t["points"])
+    assert pts.shape == (4, 3)
+    assert np.all((pts[:, 2] >= 0.2 - 0.07 - 1e-9) & (pts[:, 2] <= 0.2 - 0.04 + 1e-9))
+    # on the outline at the contacts' polar angles
+    assert np.allclose(pts[:, :2], poly.locate(np.array(t["theta_final"])).point, atol=1e-8)
+    # the score command, given the same points, gives the same 3-D S_G
+    text = ";".join(",".join(f"{v:.9f}" for v in q) for q in pts)
+    verts = ";".join(f"{x},{y}" for x, y in poly.vertices)
+    s = run("score", "--polygon", verts, "--points", text, "--height", "0.2", "--json",
+            str(tmp_path / "s.json"))  # fmt: skip
+    assert s.returncode == 0, s.stderr
+    assert json.loads((tmp_path / "s.json").read_text())["s_g"] == pytest.approx(t["s_g"], abs=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--height", "0.2"), "--model 3d"),
+        (("--model", "3d", "--depths", "0.1,0.3"), "depths below the top"),
+        (("--model", "3d", "--depths", "0.1"), "LO,HI"),
+        (("--model", "4d"), "invalid choice"),
+    ],
+)
+def test_bad_3d_trials_input_is_one_line_and_exit_2(tmp_path, args, message):
+    out = tmp_path / "never.json"
+    p = run("trials", *args, "--json", str(out))
+    assert p.returncode == 2
+    assert message in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not out.exists()

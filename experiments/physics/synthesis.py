@@ -1,0 +1,104 @@
+"""Step 1 of the physical study, planar or 3-D: the grasp controller's contacts for one grasp.
+
+- ``planar`` (the paper's controllers with phi = 0): a
+  :class:`~controllers.grasp.session.GraspSynthesis` from four contacts uniform in theta, with
+  the task cycle's pad spacing; the hand then takes each contact at its fingertip's height;
+- ``3d`` (:mod:`controllers.grasp.trials3d`): the same composer on the 3-D controllers, over
+  theta and the contacts' heights, within the band of heights a top grasp reaches
+  (:data:`TOP_GRASP_DEPTHS`); the initial heights are drawn uniform in the band after the same
+  theta draw; the pad spacing as in the planar synthesis (after every step); then the physical
+  test's task wrenches set the contacts' common height (:mod:`controllers.grasp.task_height`).
+  The hand takes each contact at its own height.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.fine_reach import GRASP_DEPTH, TOP_GRASP_DEPTHS
+from controllers.grasp.composition import Composer
+from controllers.grasp.polygon import Polygon
+from controllers.grasp.session import GraspSynthesis
+from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.trials3d import HeightBand
+from controllers.hand_reach import CONTACT_SEPARATION
+from hand_sim import robot
+
+#: Grasp models of the study (and of ``--model``).
+MODELS: tuple[str, ...] = ("planar", "3d")
+
+
+@dataclass(frozen=True)
+class Synthesis:
+    """The controller's final contacts: polar angles (rad) and, in 3-D, heights above the
+    block's centre of mass (m); its S_G (None when infeasible), steps and convergence."""
+
+    theta: NDArray[np.float64]
+    heights: NDArray[np.float64] | None
+    s_g: float | None
+    steps: int
+    converged: bool
+
+
+def grasp_depths(model: str) -> tuple[float, ...]:
+    """Depths below the top (m) the hand's seed postures are pre-shaped at for ``model``."""
+    return (GRASP_DEPTH,) if model == "planar" else TOP_GRASP_DEPTHS
+
+
+def top_grasp_band(height: float) -> HeightBand:
+    """:data:`TOP_GRASP_DEPTHS` as a band of heights above the base of a ``height`` block."""
+    return HeightBand.below_top(height, *TOP_GRASP_DEPTHS)
+
+
+def synthesize(
+    model: str,
+    polygon: Polygon,
+    height: float,
+    composer: Composer,
+    theta_initial: list[float],
+    rng: np.random.Generator,
+    *,
+    load: float,
+    yaw: float,
+) -> Synthesis:
+    """Run the ``model``'s controller (module docstring) from ``theta_initial``. In 3-D the
+    contacts' common height is then set by the physical test's tasks
+    (:func:`controllers.grasp.task_height.task_shift`, ``load`` = m*g over the grip force per
+    finger, ``yaw`` = the world x axis's angle in the block's frame)."""
+    if model == "planar":
+        syn = GraspSynthesis(
+            polygon,
+            composer,
+            theta_initial,
+            rng,
+            min_separation=CONTACT_SEPARATION,
+            separation_offset=robot.PAD_RADIUS,
+        )
+        while not syn.done:
+            syn.step()
+        score = syn.finish()
+        s_g = float(score.s_g) if score.feasible else None
+        return Synthesis(syn.theta, None, s_g, syn.steps, bool(syn.converged))
+    band = top_grasp_band(height)
+    rng_heights = rng.uniform(0.0, 1.0, size=len(theta_initial))
+    syn3 = GraspSynthesis3D(
+        polygon,
+        height,
+        band,
+        composer,
+        theta_initial,
+        band.low - 0.5 * height + rng_heights * (band.high - band.low),
+        rng,
+        min_separation=CONTACT_SEPARATION,
+        separation_offset=robot.PAD_RADIUS,
+        load=load,
+        yaw=yaw,
+    )
+    while not syn3.done:
+        syn3.step()
+    score3 = syn3.finish()
+    s_g = float(score3.s_g) if score3.feasible else None
+    return Synthesis(syn3.theta, syn3.heights, s_g, syn3.steps, bool(syn3.converged))
