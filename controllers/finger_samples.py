@@ -93,28 +93,38 @@ class FingerSamples:
             for f in fingers
         ]
         frac = np.linspace(-1.0, 1.0, POINTS_PER_LINK)
-        n_pts = max(len(c) for c in capsules) * POINTS_PER_LINK
-        tip = np.zeros((n, len(fingers), 3))
-        pad = np.zeros_like(tip)
-        side = np.zeros_like(tip)
-        palmar = np.zeros_like(tip)
-        links = np.zeros((n, len(fingers), n_pts, 3))
-        local = np.asarray(pad_normal_local, dtype=float)
         palm = model.body(robot.PALM_BODY).id
+        used = sorted({g for c in capsules for g in c})
+        # the forward kinematics of every sample first (the loop does nothing else), then the
+        # frames as stacked products (the same arithmetic, sample by sample, as one product each)
+        site_pos = np.empty((n, len(fingers), 3))
+        body_rot = np.empty((n, model.nbody, 3, 3))
+        palm_pos = np.empty((n, 3))
+        geom_pos = np.empty((n, model.ngeom, 3))
+        geom_axis = np.empty((n, model.ngeom, 3))
         for i in range(n):
             data.qpos[:] = q[i]
             mujoco.mj_kinematics(model, data)
-            R0, p0 = data.xmat[palm].reshape(3, 3), data.xpos[palm]
-            tip[i] = (data.site_xpos[tips] - p0) @ R0
-            for k, body in enumerate(distal):
-                R = R0.T @ data.xmat[body].reshape(3, 3)
-                pad[i, k] = R @ local
-                side[i, k] = R[:, 0]
-                palmar[i, k] = R[:, 2]
-                for j, g in enumerate(capsules[k]):
-                    axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
-                    pts = data.geom_xpos[g] + frac[:, None] * model.geom_size[g, 1] * axis
-                    links[i, k, j * POINTS_PER_LINK : (j + 1) * POINTS_PER_LINK] = (pts - p0) @ R0
+            site_pos[i] = data.site_xpos[tips]
+            body_rot[i] = data.xmat.reshape(-1, 3, 3)
+            palm_pos[i] = data.xpos[palm]
+            geom_pos[i, used] = data.geom_xpos[used]
+            geom_axis[i, used] = data.geom_xmat[used].reshape(-1, 3, 3)[:, :, 2]
+        R0 = body_rot[:, palm]
+        tip = np.matmul(site_pos - palm_pos[:, None], R0)
+        R = np.matmul(R0.transpose(0, 2, 1)[:, None], body_rot[:, distal])  # (n, 4, 3, 3)
+        pad = np.ascontiguousarray(np.matmul(R, np.asarray(pad_normal_local, dtype=float)))
+        side = R[..., 0].copy()
+        palmar = R[..., 2].copy()
+        n_pts = max(len(c) for c in capsules) * POINTS_PER_LINK
+        links = np.zeros((n, len(fingers), n_pts, 3))
+        for k, caps in enumerate(capsules):
+            for j, g in enumerate(caps):
+                half = frac[:, None] * model.geom_size[g, 1]
+                pts = geom_pos[:, g, None] + half[None] * geom_axis[:, g, None]
+                links[:, k, j * POINTS_PER_LINK : (j + 1) * POINTS_PER_LINK] = np.matmul(
+                    pts - palm_pos[:, None], R0
+                )
         radius = np.array(
             [np.repeat(model.geom_size[c, 0], POINTS_PER_LINK) for c in capsules], dtype=float
         )

@@ -186,6 +186,7 @@ def check_reach(
     slide: bool = False,
     samples: FingerSamples | None = None,
     squeeze: float = SQUEEZE_REACH,
+    give_up: bool = False,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
@@ -197,7 +198,10 @@ def check_reach(
     :data:`BOTTOM_MARGIN` above the prism's bottom and :data:`TOP_MARGIN` below its top; the
     heights taken are in the verdict's ``heights``. With ``samples`` each finger's IK starts
     from the sampled posture that takes its contact best (:meth:`FingerSamples.best`) where one
-    does, instead of from the hand's present posture: a global search the local IK refines."""
+    does, instead of from the hand's present posture: a global search the local IK refines.
+    ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
+    ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
+    those of the shorter run (the verdict is the same)."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -223,6 +227,7 @@ def check_reach(
         model=model,
         pad_centres=centres,
         slide=heights if slide else None,
+        give_up=give_up,
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     data = mujoco.MjData(model)
@@ -361,6 +366,7 @@ def reachable_contacts(
     samples: FingerSamples | None = None,
     squeeze: float = SQUEEZE_REACH,
     heights: ArrayLike | None = None,
+    give_up: bool = False,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
@@ -370,7 +376,8 @@ def reachable_contacts(
     their faces (:func:`check_reach`); the contacts returned are at the heights taken.
     ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
     its contact each fingertip must reach (:func:`check_reach`). ``heights`` (n,): world z of
-    each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own)."""
+    each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
+    ``give_up``: each check stops as soon as it cannot succeed (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
@@ -399,6 +406,7 @@ def reachable_contacts(
             slide=slide,
             samples=samples,
             squeeze=squeeze,
+            give_up=give_up,
         )
         if slide and reach.heights is not None:
             contacts = given_contacts(th, xy, nxy, reach.heights, perms[k])

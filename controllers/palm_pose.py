@@ -145,6 +145,7 @@ def search_seeds(
             fingers_may_touch=True,
             pad_centres=centres,
             qpos=start.qpos,
+            give_up=True,  # an unreachable posture is passed over
         )
         if not sol.reachable:
             reason = f"Posture Control: {', '.join(sol.unreachable)} cannot reach"
@@ -167,6 +168,7 @@ def search_seeds(
             tries=confirm_tries,
             check_spacing=check_spacing,
             heights=query.heights,
+            give_up=True,
         )
         if not reach.reachable:
             reason = reach.reason
@@ -223,6 +225,7 @@ def search_poses(
                 samples=query.samples,
                 squeeze=query.squeeze,
                 heights=query.heights,
+                give_up=reachable_only,  # else the loads of unreachable poses rank them
             )
             qpos = pose.qpos.copy()
             qpos[hand_adr] = reach.hand_q

@@ -7,14 +7,13 @@ Manipulability measure. Each finger's fingertip position Jacobian ``J_f`` (3 x 4
 to that finger's own joints) has Yoshikawa manipulability ``w_f = sqrt(det(J_f J_f^T))``; the
 hand's measure is ``M = sum_f log(w_f)`` (log of the product; ``-inf`` at a singular finger).
 ``w_f`` does not depend on the arm, but with the fingertips held the arm must move for the
-fingers to change posture: this is how the arm is "reconfigured to maximise the hand
-manipulability while maintaining the current fingertip positions".
+fingers to change posture: the arm is "reconfigured to maximise the hand manipulability while
+maintaining the current fingertip positions".
 
 :class:`ManipulabilityTask` is a gradient-type mink task: its error is a constant desired
 decrease of ``-2 M`` per step and its Jacobian the gradient of ``-2 M`` (finite differences over
 the finger joints), so the QP trades it against the fingertip tasks; it needs ``solve_ik(...,
-damping=...)``: without damping a gradient-type task makes the step explode
-(docs/reach.md, "Posture control").
+damping=...)``: without, the step explodes (docs/reach.md, "Posture control").
 """
 
 from __future__ import annotations
@@ -27,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
+from controllers.ik_progress import ReachProgress
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -241,28 +241,29 @@ def solve_posture(
     fingers_may_touch: bool = False,
     pad_centres: ArrayLike | None = None,
     slide: tuple[float, float] | None = None,
+    give_up: bool = False,
 ) -> PostureResult:
     """Kinematic posture control from the world's current state, or from ``qpos`` (the world is
-    not changed).
-
-    First the fingertips are brought to ``targets`` (4, 3) (default: where they are now); if a
-    target stays farther than ``tolerance`` the result is ``reachable=False``. Then, if
-    ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold the tips;
-    a step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
+    not changed). First the fingertips are brought to ``targets`` (4, 3) (default: where they
+    are now); if a target stays farther than ``tolerance`` the result is ``reachable=False``.
+    Then, if ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold
+    the tips; a step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
     ``"arm+hand"`` (posture control) or ``"hand"`` (fingers only); other joints are frozen.
     ``model`` replaces the world's model (same state layout; e.g. the planning model holding the
     perceived target, :mod:`controllers.planning_model`). ``avoid_collisions`` keeps every robot
     geom :data:`AVOID_DISTANCE` from the table and the blocks (mink's collision avoidance limit),
     except that the fingertip pads may touch (and, kinematically, press into) the geom named
-    ``touchable``. ``pad_centres`` (4, 3), if given,
-    are targets of the centres of the fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`)
-    at a lower cost: with a fingertip target on a surface point and its pad centre one pad radius
-    out along the surface normal, the pad, not the side or the end of the finger, faces the
-    surface (position-only IK leaves each finger one redundant degree of freedom, its pad's
-    orientation). ``slide`` = (lowest, highest) world z (m) lets each fingertip target slide
-    vertically within that range while the fingertips are brought to their targets: a contact
-    on a prism's vertical face is planar (section 5), a vertical line rather than a point, so
-    only the target's horizontal position is held and its height follows the fingertip's.
+    ``touchable``. ``pad_centres`` (4, 3), if given, are targets of the centres of the
+    fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`) at a lower cost: with a fingertip
+    target on a surface point and its pad centre one pad radius out along the surface normal,
+    the pad, not the side or the end of the finger, faces the surface (position-only IK leaves
+    each finger one redundant degree of freedom, its pad's orientation). ``slide`` = (lowest,
+    highest) world z (m) lets each fingertip target slide vertically within that range while
+    the fingertips are brought to their targets: a contact on a prism's vertical face is planar
+    (section 5), a vertical line, so only the target's horizontal position is held and its height
+    follows the fingertip's. ``give_up``: stop as soon as the targets cannot be reached
+    (:class:`controllers.ik_progress.ReachProgress`), for a caller that discards unreachable
+    results (their joints then differ from those of a full run).
     """
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
@@ -374,11 +375,14 @@ def solve_posture(
         return float(np.linalg.norm(cfg.data.site_xpos[pad_sites] - centres, axis=1).sum())
 
     last_pad = np.inf
+    progress = ReachProgress(tolerance, reach_iterations) if give_up else None
     for _ in range(reach_iterations):
         if slide is not None:
             follow_heights()
         now_pad = pad_error()
         if tip_error().max() < 0.5 * tolerance and last_pad - now_pad < PAD_SETTLED:
+            break
+        if progress is not None and progress.hopeless(float(tip_error().max())):
             break
         last_pad = now_pad
         if not ik_step(tips_and_pads):

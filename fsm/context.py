@@ -119,6 +119,10 @@ class Episode:
     expected_load: float = 0.0  #: N, perceived volume x wood density x g
     #: sampled finger postures for lateral reachability searches (drawn on first use)
     finger_samples: Any | None = None
+    #: a top grasp's palm poses of the last palm-pose search and what they were computed from
+    #: (the world's qpos, the coarse reach's palm rotation, the target and planning model): a
+    #: search repeated before anything has moved takes them again
+    top_poses: tuple[tuple[Any, ...], list[Any]] | None = None
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
     @property
@@ -138,6 +142,7 @@ class Episode:
         self.cycles.append(CycleRecord(index=len(self.cycles)))
         self.model = self.target = self.planning = self.prism = None
         self.coarse = self.synthesis = self.contacts = self.reach = self.grip = None
+        self.top_poses = None
         self.posture_mode = "hold"
         return self.record
 

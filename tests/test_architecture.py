@@ -111,3 +111,25 @@ def test_no_module_is_over_500_lines() -> None:
         if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
     }
     assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+def test_an_episode_does_not_import_torch() -> None:
+    """Start-up cost: torch (about 3 s to import) serves only the predictor's training; the task
+    cycle with the learned (pi) controller evaluates the trained predictor in numpy."""
+    code = (
+        "import sys\n"
+        "import fsm.machine, fsm.run, fsm.recording\n"
+        "from controllers.grasp.registry import make_composer\n"
+        "make_composer('pi'); make_composer('ql'); make_composer('kb')\n"
+        "print(sorted(m for m in sys.modules if m == 'torch' or m.startswith('torch.')))\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=REPO,
+        env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(REPO), "MUJOCO_GL": "egl"},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip() == "[]"

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
 
 from controllers.grasp.composition import KnowledgeBased
@@ -91,7 +90,10 @@ def noise_displacement(
 def failure_gradient(predictor: FSPredictor, state: ControlState) -> NDArray[np.float64]:
     """d(failure expectation)/d theta, (T, n): the network's input gradient, times the derivative
     of Eq. 14's scaling (0 where it is floored or capped), times the exact gradients of eps_FC and
-    eps_MC (Eq. 6 and Eq. 3 with the MC model)."""
+    eps_MC (Eq. 6 and Eq. 3 with the MC model). Imports torch (for its autograd) when first
+    called: the default noise action never needs it."""
+    import torch
+
     x = torch.from_numpy(network_input(state.eps_fc, state.eps_mc)).requires_grad_(True)
     h = torch.tanh(0.5 * (x @ torch.from_numpy(predictor.w1).T + torch.from_numpy(predictor.b1)))
     y = torch.tanh(0.5 * (h @ torch.from_numpy(predictor.w2).T + torch.from_numpy(predictor.b2)))

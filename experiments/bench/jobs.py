@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
 import traceback
 from dataclasses import dataclass, field
@@ -80,11 +81,11 @@ def rrd_name(seed: int) -> str:
 
 
 def _limit_threads(controller: str) -> None:
-    """One core per episode: the pool runs one episode per core, so the pre-imaging network
-    (torch) must not start a thread per core in every worker."""
-    if controller == "pi":
-        import torch
-
+    """One core per episode: the pool runs one episode per core, so torch, if something in the
+    worker has imported it, must not start a thread per core (an episode itself does not import
+    it: the pre-imaging controller evaluates its trained predictor in numpy)."""
+    torch = sys.modules.get("torch")
+    if controller == "pi" and torch is not None:
         torch.set_num_threads(1)
 
 

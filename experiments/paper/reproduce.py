@@ -28,7 +28,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-import torch
 
 import controllers.grasp
 from controllers.grasp.atomic import (
@@ -76,6 +75,8 @@ from graspsim_base.pool import map_unordered
 def _run_task(task: tuple[str, ReproduceConfig, int]) -> tuple[dict, float, float]:
     """Run one task (name, config, seed); its result, wall and CPU seconds."""
     name, cfg, seed = task
+    import torch  # here, not at the top: a command that fails on its input does not pay for it
+
     torch.set_num_threads(1)
     t0, c0 = time.perf_counter(), time.process_time()
     out = TASKS[name](cfg, seed)
@@ -157,6 +158,8 @@ def reproduce(
     cfg = config or ReproduceConfig.paper()
     if not cfg.seeds or len(set(cfg.seeds)) != len(cfg.seeds) or min(cfg.seeds) < 0:
         raise ValueError(f"seeds must be distinct non-negative integers, got {cfg.seeds}")
+    import torch
+
     torch.set_num_threads(1)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,8 @@ from controllers.grasp.objects import (
     paper_object,
     polygon_set,
 )
-from controllers.grasp.predictor import PREDICTOR_EPOCHS, train_predictor
+from controllers.grasp.predictor import PREDICTOR_EPOCHS
+from controllers.grasp.predictor_training import train_predictor
 from controllers.grasp.preimaging import (
     NOISE_READINGS,
     PreImaging,

@@ -88,6 +88,8 @@ def wrench_closure(ep: Episode) -> Step:
             samples=query.samples,
             squeeze=query.squeeze,
             heights=query.heights,
+            # an unreachable top grasp only needs the verdict (a lateral one keeps its heights)
+            give_up=not query.slide,
         )
         ep.contacts, ep.reach = contacts, reach
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:

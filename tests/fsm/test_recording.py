@@ -71,9 +71,19 @@ def run_for(world: World, seconds: float, steps_per_tick: int = CONTROL_STEPS) -
         world.step(steps_per_tick)
 
 
-@pytest.fixture
-def world() -> World:
+@pytest.fixture(scope="module")
+def built_world() -> World:
+    """clutter3, built once for the module (building is the costly part)."""
     return World.build(load_scene("clutter3"))
+
+
+@pytest.fixture
+def world(built_world: World) -> World:
+    """The module's clutter3 world as :meth:`World.build` left it: every test starts from the
+    same state, time 0 and no step hook."""
+    built_world.reset()
+    built_world.on_step = None
+    return built_world
 
 
 def test_episode_entities_timelines_and_layout(tmp_path: Path, world: World) -> None:

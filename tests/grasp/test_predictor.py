@@ -5,12 +5,11 @@ import pytest
 import torch
 
 from controllers.grasp.errors import ModelNotTrainedError
-from controllers.grasp.predictor import (
+from controllers.grasp.predictor import FSPredictor, network_input
+from controllers.grasp.predictor_training import (
     FSNetwork,
-    FSPredictor,
     balance_classes,
     bipolar_sigmoid,
-    network_input,
     train_predictor,
     visited_states,
 )
@@ -46,6 +45,21 @@ def test_bipolar_sigmoid_is_tanh_half():
     net = FSNetwork(torch.Generator().manual_seed(0))
     y = net(torch.from_numpy(network_input(np.array([0.0, 1.0]), np.array([0.5, 0.001]))))
     assert torch.all(y.abs() < 1)
+
+
+def test_numpy_evaluation_matches_the_torch_network():
+    """The controllers evaluate the predictor in numpy (no torch import): the same float32
+    output as the network it was trained as, to 1e-6, and the same failure verdicts."""
+    net = FSNetwork(torch.Generator().manual_seed(3))
+    predictor = FSPredictor.of(net)
+    rng = np.random.default_rng(0)
+    eps_fc, eps_mc = 10.0 ** rng.uniform(-6, 0, (2, 20000))
+    with torch.no_grad():
+        want = net(torch.from_numpy(network_input(eps_fc, eps_mc))).numpy()
+    got = predictor.failure_expectation(eps_fc, eps_mc)
+    assert got.dtype == np.float32 and got.shape == want.shape
+    assert np.abs(got - want).max() < 1e-6
+    assert np.array_equal(got > 0.0, want > 0.0)
 
 
 def test_seeded_training_is_bit_identical_and_saves_exactly(tmp_path):
