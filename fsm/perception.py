@@ -4,12 +4,14 @@ point of the cycle."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.palm_candidates import robot_base_xy
-from fsm.context import EpisodeOptions
+from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
 from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.states import Failure, TaskFailedError
 from hand_sim.geometry import point_in_convex_polygon
@@ -61,6 +63,16 @@ def choose_block(
     return min(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
 
 
+@dataclass(frozen=True)
+class PlaceChoice:
+    """A cycle's place point: the one asked for (None when nothing was asked: the later cycles of
+    ``--cycles``), who chose the point to use (``fsm.context.PLACE_BY_*``) and that point."""
+
+    asked: NDArray[np.float64] | None
+    chosen_by: str
+    point: NDArray[np.float64]
+
+
 def place_for_cycle(
     world: World,
     options: EpisodeOptions,
@@ -68,24 +80,36 @@ def place_for_cycle(
     footprints: list[NDArray[np.float64]],
     radius: float,
     place_reach: tuple[float, float],
-) -> NDArray[np.float64]:
-    """This cycle's place point for a block of circumradius ``radius`` (m): the asked one first
-    (it must be clear of the other blocks' ``footprints``), then free slots near it within
-    ``place_reach`` (m) of the arm's base. Raises :class:`TaskFailedError` when there is none."""
+) -> PlaceChoice:
+    """This cycle's place point for a block of circumradius ``radius`` (m). The first cycle's is
+    the one asked for (``--place`` / ``--place-pixel``, else the scene's); it must be clear of the
+    other blocks' ``footprints``, or, with ``--place-fallback nearest``, the nearest free slot is
+    used instead. Later cycles choose their own: the free slot nearest the first place point,
+    within ``place_reach`` (m) of the arm's base. Raises :class:`TaskFailedError` when there is
+    none."""
     scene = world.scene
-    first = np.asarray(options.place if options.place is not None else scene.place)
-    if cycle == 0:
-        if not place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
-            raise TaskFailedError(
-                Failure.PLACE_UNREACHABLE,
-                f"place point {first.round(3).tolist()} is occupied by another block",
-            )
-        return first
+    first = np.asarray(options.place if options.place is not None else scene.place, dtype=float)
     reach = (robot_base_xy(world), *place_reach)
+    if cycle == 0:
+        by = PLACE_BY_SCENE if options.place is None else PLACE_BY_USER
+        if place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
+            return PlaceChoice(first, by, first)
+        occupied = f"place point {first.round(3).tolist()} is occupied by another block"
+        slot = None
+        if options.place_fallback == "nearest":
+            slot = free_slot(first, radius, footprints, scene.table, reach)
+        if slot is None:
+            hint = (
+                "; no free slot near it either"
+                if options.place_fallback == "nearest"
+                else " (--place-fallback nearest would deliver to the nearest free slot)"
+            )
+            raise TaskFailedError(Failure.PLACE_UNREACHABLE, occupied + hint)
+        return PlaceChoice(first, by, slot)
     slot = free_slot(first, radius, footprints, scene.table, reach)
     if slot is None:
         raise TaskFailedError(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
-    return slot
+    return PlaceChoice(None, PLACE_BY_TASK, slot)
 
 
 def other_footprints(
