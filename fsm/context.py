@@ -72,6 +72,11 @@ class CycleRecord:
     approach: str = ""
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
+    #: why each other block Select/Model could not model was not (each then counts as an
+    #: obstacle: its pixels' hull grown by fsm.perception.OBSTACLE_MARGIN)
+    obstacles_not_modelled: list[str] = field(default_factory=list)
+    #: blocks a later cycle could not model and passed over for the next one, and why
+    skipped_not_modelled: list[str] = field(default_factory=list)
     contacts: list[list[float]] | None = None  #: world contact points, finger order
     contact_theta: list[float] | None = None
     s_g: float | None = None

@@ -34,23 +34,23 @@ def on_table(world: World, selection: Selection, index: int) -> bool:
     return bool(world.scene.table.contains(centre[None], margin=0.0))
 
 
-def choose_block(
+def choose_blocks(
     world: World,
     selection: Selection,
     options: EpisodeOptions,
     cycle: int,
     delivered: list[str],
-) -> int:
-    """Index (in ``selection``) of the block cycle ``cycle`` picks: the first cycle's as
-    ``options`` ask (a pixel, a name, or the scene's target); later cycles the remaining block on
-    the table (not in ``delivered``) nearest the arm's base. Raises LookupError when none is
-    left."""
+) -> list[int]:
+    """Indices (in ``selection``) of the blocks cycle ``cycle`` may pick, in the order to try
+    them: the first cycle's one block as ``options`` ask (a pixel, a name, or the scene's
+    target); in later cycles the remaining blocks on the table (not in ``delivered``), nearest
+    the arm's base first (one that cannot be modelled gives way to the next). Raises
+    LookupError when none is left."""
     sel = selection
     if cycle == 0 and options.pick_pixel is not None:
-        return sel.index_at_pixel(options.pick_pixel)
+        return [sel.index_at_pixel(options.pick_pixel)]
     if cycle == 0:
-        return sel.index_of_name(options.pick or world.scene.target)
-    # later cycles: the remaining block nearest the place point is cleared first
+        return [sel.index_of_name(options.pick or world.scene.target)]
     remaining = [
         i
         for i, name in enumerate(sel.names)
@@ -60,7 +60,7 @@ def choose_block(
         raise LookupError("no block left")
     centres = sel.block_centres()[:, :2]
     base = np.asarray(robot_base_xy(world))
-    return min(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
+    return sorted(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
 
 
 @dataclass(frozen=True)
@@ -112,25 +112,51 @@ def place_for_cycle(
     return PlaceChoice(None, PLACE_BY_TASK, slot)
 
 
+#: A block Select/Model cannot model stands in the way as the convex hull of its top face's
+#: pixels grown by this margin (m) on every side.
+OBSTACLE_MARGIN = 0.01
+
+
+def obstacle_footprint(
+    selection: Selection, index: int, margin: float = OBSTACLE_MARGIN
+) -> NDArray[np.float64] | None:
+    """World footprint (k, 2) of block ``index`` of ``selection`` as an obstacle, without its
+    polygon: the convex hull of its top face's pixels cast onto the top's plane, grown by
+    ``margin`` (m) (eight offsets of every hull point, hulled again, so that a region of one
+    pixel or one pixel wide still gives an area). None when the region has no pixel."""
+    region = selection.blocks[index]
+    v, u = np.nonzero(region.top_mask)
+    if u.size == 0:
+        return None
+    g = selection.observation.geometry
+    pixels = np.unique(np.column_stack([u, v]).astype(np.float32), axis=0)
+    hull = cv2.convexHull(pixels).reshape(-1, 2) if len(pixels) >= 3 else pixels
+    xy = g.pixel_to_plane(hull.astype(float), region.z_top)[:, :2]
+    angles = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
+    ring = margin * np.column_stack([np.cos(angles), np.sin(angles)])
+    grown = (xy[:, None, :] + ring[None]).reshape(-1, 2).astype(np.float32)
+    return cv2.convexHull(grown).reshape(-1, 2).astype(float)
+
+
 def other_footprints(
     world: World, selection: Selection, index: int, picked: NDArray[np.float64]
-) -> list[NDArray[np.float64]]:
+) -> tuple[list[NDArray[np.float64]], list[str]]:
     """World footprints of the blocks of ``selection`` on the table other than ``index`` (whose
-    perceived world vertices are ``picked``), as perceived (a block whose polygon cannot be
-    extracted counts by its convex region of pixels on the table plane)."""
+    perceived world vertices are ``picked``), as perceived, and why each block that could not be
+    modelled was not: such a block counts as an obstacle by :func:`obstacle_footprint`."""
     out = []
-    g = selection.observation.geometry
+    unmodelled = []
     centres = selection.block_centres()[:, :2]
-    for i, region in enumerate(selection.blocks):
+    for i in range(len(selection.blocks)):
         if i == index or not on_table(world, selection, i):
             continue
         if point_in_convex_polygon(centres[i], picked):
             continue  # a fragment of the picked block's own view
         try:
             out.append(selection.model(i).world_vertices)
-        except VisionError:
-            v, u = np.nonzero(region.top_mask)
-            pixels = np.column_stack([u, v]).astype(np.float32)
-            hull = cv2.convexHull(pixels).reshape(-1, 2)
-            out.append(np.array([g.pixel_to_plane(p, region.z_top)[:2] for p in hull]))
-    return out
+        except VisionError as e:
+            unmodelled.append(str(e))
+            footprint = obstacle_footprint(selection, i)
+            if footprint is not None:
+                out.append(footprint)
+    return out, unmodelled

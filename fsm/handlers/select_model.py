@@ -9,13 +9,12 @@ from controllers.finger_geometry import PerceivedPrism
 from controllers.planning_model import planning_model
 from controllers.reach import ReachTarget
 from fsm.context import CycleRecord, Episode
-from fsm.perception import choose_block, other_footprints, perceive, place_for_cycle
+from fsm.perception import choose_blocks, other_footprints, perceive, place_for_cycle
 from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim.blocks import WOOD_DENSITY
 from hand_sim.robot import STANDARD_GRAVITY
 from vision import VisionError
-from vision.errors import NotABlockError
 
 
 def select_model(ep: Episode) -> Step:
@@ -24,17 +23,21 @@ def select_model(ep: Episode) -> Step:
     world = ep.world
     ep.selection = perceive(world)
     try:
-        index = choose_block(world, ep.selection, ep.options, ep.cycle, ep.delivered)
+        candidates = choose_blocks(world, ep.selection, ep.options, ep.cycle, ep.delivered)
     except LookupError:
         return Step(State.DONE, "no block left to pick")
-    except NotABlockError as e:
+    except VisionError as e:  # NotABlockError among them
         raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
-    except VisionError as e:
-        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
-    try:
-        model = ep.selection.model(index)
-    except VisionError as e:
-        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, str(e)) from e
+    reasons = []
+    for index in candidates:
+        try:
+            model = ep.selection.model(index)
+            break
+        except VisionError as e:
+            reasons.append(str(e))
+    else:
+        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, "; ".join(reasons))
+    record.skipped_not_modelled = reasons
     name = ep.selection.names[index]
     if name is None:
         raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
@@ -59,7 +62,8 @@ def select_model(ep: Episode) -> Step:
         "true_edges": float(truth.polygon.n_edges),
     }
     # the place point must be clear of every other perceived block
-    footprints = other_footprints(world, ep.selection, index, model.world_vertices)
+    footprints, unmodelled = other_footprints(world, ep.selection, index, model.world_vertices)
+    record.obstacles_not_modelled = unmodelled
     radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
     choice = place_for_cycle(world, ep.options, ep.cycle, footprints, radius, ep.config.place_reach)
     ep.place_footprints, ep.place_radius = footprints, radius
