@@ -1,0 +1,135 @@
+"""Honest episodes (issue 22): any exception inside a state is a named failure (``internal error``
+with the exception's one line, as a last resort) in the summary, the transition log, the
+recording and the exit status, with NumPy's warnings kept out of the terminal; the first cycle's
+place point is the one asked for, moved to a free slot only with ``--place-fallback nearest``;
+later cycles choose their own."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fsm import handlers
+from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
+from fsm.layout import SLOT_CLEARANCE, place_is_free
+from fsm.machine import run_episode
+from fsm.perception import obstacle_footprint, perceive, place_for_cycle
+from fsm.run import main
+from fsm.states import Failure, State, Step, TaskFailedError
+from hand_sim.scene import load_scene
+from hand_sim.world import World
+from tests.fsm.test_recording import rows
+
+#: A controller that needs no trained model and loads fastest.
+CONTROLLER = "kb"
+
+
+def _index_error(ep) -> Step:
+    """A bug of the kind issue 22 met: NumPy warns about an empty mean, then an index fails."""
+    np.mean(np.zeros(0))
+    return Step(State.DONE, str(np.zeros((0, 2))[-1]))
+
+
+def test_an_exception_in_a_state_is_a_named_failure_everywhere(
+    tmp_path: Path, monkeypatch, capfd
+) -> None:
+    monkeypatch.setitem(handlers.HANDLERS, State.SELECT_MODEL, _index_error)
+    code = main(["--scene", "clutter3", "--controller", CONTROLLER, "--out", str(tmp_path)])
+    out, err = capfd.readouterr()
+    assert code == 1
+    assert "Traceback" not in out + err and "Warning" not in out + err, err
+    (failed,) = [line for line in out.splitlines() if line.startswith("FAILED")]
+    assert failed.startswith("FAILED: internal error: Select/Model: IndexError: index -1")
+    assert "test_honest.py" in failed and "_index_error" in failed  # where it was raised
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert (s["success"], s["failure"]) == (False, Failure.INTERNAL_ERROR.value)
+    assert s["failure_detail"].startswith("Select/Model: IndexError: index -1")
+    assert "\n" not in s["failure_detail"] and "_index_error" in s["traceback"]
+    assert s["transitions"] == [f"Select/Model -> Failed: internal error: {s['failure_detail']}"]
+    assert any("RuntimeWarning: Mean of empty slice" in w for w in s["warnings"]), s["warnings"]
+    events = [v[0] for _, v in rows(tmp_path / "episode.rrd", "/events", "TextLog:text")]
+    assert f"Select/Model -> Failed: internal error: {s['failure_detail']}" in events
+    assert events[-1] == "FAILED: failed: internal error"
+
+
+def test_a_hand_over_the_table_does_not_list_is_an_internal_error(
+    tmp_path: Path, monkeypatch
+) -> None:
+    monkeypatch.setitem(
+        handlers.HANDLERS, State.SELECT_MODEL, lambda ep: Step(State.GRASP_OBJECT, "skip")
+    )
+    options = EpisodeOptions(scene="clutter3", controller=CONTROLLER, out=tmp_path, record=False)
+    result = run_episode(options)
+    assert result.failure == Failure.INTERNAL_ERROR.value
+    assert "the machine went from Select/Model to Grasp Object" in result.failure_detail
+    assert result.visits[-1].next == State.FAILED.value
+
+
+# --- the place point ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def clutter3_world() -> World:
+    return World.build(load_scene("clutter3"))
+
+
+def _square(centre: tuple[float, float], half: float = 0.02) -> np.ndarray:
+    c = np.asarray(centre)
+    return c + half * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+def test_the_first_place_point_is_the_one_asked_for(clutter3_world: World) -> None:
+    world = clutter3_world
+    asked = np.asarray(world.scene.place)
+    radius = 0.026
+    free = place_for_cycle(world, EpisodeOptions(), 0, [], radius, (0.35, 0.95))
+    assert free.chosen_by == PLACE_BY_SCENE
+    assert np.array_equal(free.asked, asked) and np.array_equal(free.point, asked)
+    # a block standing on the asked point: the episode fails there, saying what would move it
+    blocked = [_square((float(asked[0]) + 0.03, float(asked[1])))]
+    with pytest.raises(TaskFailedError) as caught:
+        place_for_cycle(world, EpisodeOptions(), 0, blocked, radius, (0.35, 0.95))
+    assert caught.value.failure is Failure.PLACE_UNREACHABLE
+    assert "occupied" in caught.value.detail and "--place-fallback nearest" in caught.value.detail
+    # ... unless the user lets it go to the nearest free slot: asked and used both kept
+    moved = place_for_cycle(
+        world,
+        EpisodeOptions(place=(0.0, -0.25), place_fallback="nearest"),
+        0,
+        blocked,
+        radius,
+        (0.35, 0.95),
+    )
+    assert moved.chosen_by == PLACE_BY_USER and np.array_equal(moved.asked, asked)
+    assert np.linalg.norm(moved.point - asked) > 0.05
+    assert place_is_free(moved.point, radius, blocked, world.scene.table, SLOT_CLEARANCE)
+    # later cycles: nothing was asked, the task cycle chooses
+    later = place_for_cycle(world, EpisodeOptions(), 1, [], radius, (0.35, 0.95))
+    assert later.asked is None and later.chosen_by == PLACE_BY_TASK
+    assert np.allclose(later.point, asked)
+
+
+def _with_region(sel, mask: np.ndarray):
+    """``sel`` with one block: its first region with top face ``mask``."""
+    region = dataclasses.replace(sel.blocks[0], top_mask=mask)
+    seg = dataclasses.replace(sel.segmentation, blocks=(region,))
+    return dataclasses.replace(sel, segmentation=seg, names=(sel.names[0],))
+
+
+def test_an_unmodelled_block_is_an_obstacle_grown_by_the_margin(clutter3_world: World) -> None:
+    """A region of one pixel still stands in the way: a polygon around the pixel's point on
+    the top plane, the margin away from it in every direction (within the octagon's sag); a
+    region without a pixel is no obstacle."""
+    sel = perceive(clutter3_world)
+    region = sel.blocks[0]
+    one = np.zeros_like(region.top_mask)
+    u, v = (round(c) for c in region.pixel_centroid)
+    one[v, u] = True
+    footprint = obstacle_footprint(_with_region(sel, one), 0, margin=0.01)
+    point = sel.observation.geometry.pixel_to_plane(np.array([u, v], float), region.z_top)[:2]
+    d = np.linalg.norm(footprint - point, axis=1)
+    assert len(footprint) >= 8
+    assert np.all(d <= 0.0101) and np.all(d >= 0.01 * np.cos(np.pi / 8) - 1e-4)
+    assert obstacle_footprint(_with_region(sel, np.zeros_like(one)), 0) is None
