@@ -267,17 +267,17 @@ def run(argv: Sequence[str] | None) -> int:
     if result.success:
         for c in result.cycles:
             j = c["judgement"]
-            elsewhere = (
-                f"; delivered ELSEWHERE, {c['place_moved_mm']:.0f} mm from the place point asked "
-                f"for {[round(v, 3) for v in c['place_asked']]}"
-                if c["delivered_elsewhere"]
-                else ""
-            )
+            used = [round(v, 3) for v in c["place_used"]]
+            where = f"the place point {used} ({c['place_chosen_by']})"
+            if c["delivered_elsewhere"]:
+                asked = [round(v, 3) for v in c["place_asked"]]
+                where = (
+                    f"the free slot {used}: delivered ELSEWHERE, {c['place_moved_mm']:.0f} mm "
+                    f"from the place point asked for {asked} ({c['place_chosen_by']})"
+                )
             print(
                 f"delivered {c['block']} ({c['approach']} grasp, S_G {c['s_g']:.3f}): "
-                f"{j['place_error_mm']:.1f} mm from the place point "
-                f"{[round(v, 3) for v in c['place_used']]} ({c['place_chosen_by']}), "
-                f"tilt {j['tilt_deg']:.1f} deg{elsewhere}"
+                f"{j['place_error_mm']:.1f} mm from {where}, tilt {j['tilt_deg']:.1f} deg"
             )
     else:
         print(f"FAILED: {result.failure}: {result.failure_detail}")

@@ -64,8 +64,10 @@ PROG = "python -m experiments.bench"
 SETTINGS_FILE = "bench.json"
 #: Options that must match for ``--resume`` to add to a folder's results.
 RESUME_KEYS = ("scene", "blocks", "controller", "approach", "models", "cycles", "place_fallback")
-#: Settings of a bench folder written before they existed (what those benches ran).
-SETTING_DEFAULTS = {"cycles": "1", "place_fallback": "none"}
+#: Settings of a bench folder written before they existed (what those benches ran: one cycle,
+#: and a place point the hand could not set down at moved to a free slot unreported, so that
+#: their results cannot be resumed under the rule that judges at the point asked for).
+SETTING_DEFAULTS = {"cycles": "1", "place_fallback": "a free slot, unreported (old rule)"}
 #: Most episodes one command may ask for.
 MAX_EPISODES = 100_000
 MAX_WORKERS = 1024

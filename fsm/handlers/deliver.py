@@ -175,8 +175,9 @@ def deliver(ep: Episode) -> Step:
         raise TaskFailedError(Failure.NOT_PLACED, "; ".join(verdict.reasons))
     record.success = True
     ep.delivered.append(name)
+    where = "free slot" if record.delivered_elsewhere else "place point"
     summary = (
-        f"{name} placed {verdict.place_error_mm:.1f} mm from the place point "
+        f"{name} placed {verdict.place_error_mm:.1f} mm from the {where} "
         f"({ep.place[0]:.3f}, {ep.place[1]:.3f}) ({record.place_chosen_by}), "
         f"tilt {verdict.tilt_deg:.1f} deg"
     ) + _elsewhere_note(record)
