@@ -36,7 +36,7 @@ def _unreachable_detail(ep: Episode, tried: list[np.ndarray], reason: str) -> st
     """Why no set-down was found: at the point asked for (with the flag that would try
     another), or at every slot the task cycle tried."""
     where = tried[-1].round(3).tolist()
-    if ep.cycle == 0 and len(tried) == 1:
+    if ep.cycle == 0 and len(tried) == 1 and not ep.record.delivered_elsewhere:
         hint = (
             ""
             if ep.options.place_fallback == "nearest"
