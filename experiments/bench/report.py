@@ -222,7 +222,7 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "",
         f"![success rate]({FIGURES['success']})",
         "",
-        *_cycles_section(s),
+        *(_cycles_section(s) if settings.get("cycles", "1") != "1" else []),
         "## Failure reasons",
         "",
     ]
