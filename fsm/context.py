@@ -111,6 +111,9 @@ class Episode:
     cycles: list[CycleRecord] = field(default_factory=list)
     delivered: list[str] = field(default_factory=list)  #: scene names of delivered blocks
     place: NDArray[np.float64] | None = None
+    #: the arm's posture when the first Select/Model looked (parked clear of the view); Deliver
+    #: returns the arm there before the next cycle's Select/Model
+    parked_arm: NDArray[np.float64] | None = None
     #: the other blocks' perceived footprints and the picked block's circumradius (m), for the
     #: next place slot when the hand cannot set the block down at this cycle's first
     place_footprints: list[NDArray[np.float64]] = field(default_factory=list)

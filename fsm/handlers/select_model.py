@@ -21,6 +21,8 @@ def select_model(ep: Episode) -> Step:
     """Select/Model: the picked block's polygon, centroid and yaw from the overhead image."""
     record = ep.new_cycle()
     world = ep.world
+    if ep.parked_arm is None:
+        ep.parked_arm = world.arm_qpos().copy()
     ep.selection = perceive(world)
     try:
         candidates = choose_blocks(world, ep.selection, ep.options, ep.cycle, ep.delivered)
