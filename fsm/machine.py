@@ -226,6 +226,10 @@ def run_episode(
         if ep.cycles:
             ep.record.failure = Failure.INTERRUPTED.value
         raise
+    except Exception as e:  # the machine's own bug, outside any state: named all the same
+        result.failure = Failure.INTERNAL_ERROR.value
+        result.failure_detail = f"the machine: {internal_error_detail(e)}"
+        result.traceback = "".join(traceback.format_exception(e))
     finally:
         world.on_step = None
         picked = [c for c in ep.cycles if c.block is not None]

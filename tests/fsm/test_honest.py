@@ -228,3 +228,23 @@ def test_the_fallback_delivers_elsewhere_and_says_so_everywhere(crowded) -> None
     assert outcome(line) == ELSEWHERE
     summary = summarize([line])
     assert (summary.successes, summary.elsewhere, summary.rate.estimate) == (0, 1, 0.0)
+
+
+def test_an_exception_of_the_machine_itself_is_named_too(tmp_path: Path, monkeypatch) -> None:
+    """Outside any state (here: the recorder's transition log breaks), the episode still ends
+    with a named failure and a summary."""
+    from fsm.recorder_protocol import NullRecorder
+
+    class Broken(NullRecorder):
+        def log_transition(self, *args, **kwargs) -> None:
+            raise OSError("disk full")
+
+    options = EpisodeOptions(scene="clutter3", controller=CONTROLLER, out=tmp_path, record=True)
+    monkeypatch.setitem(
+        handlers.HANDLERS, State.SELECT_MODEL, lambda ep: Step(State.DONE, "nothing to do")
+    )
+    result = run_episode(options, recorder_factory=lambda path, world: Broken())
+    assert (result.success, result.failure) == (False, Failure.INTERNAL_ERROR.value)
+    assert result.failure_detail.startswith("the machine: OSError: disk full")
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["failure"] == Failure.INTERNAL_ERROR.value and "OSError" in s["traceback"]
