@@ -124,3 +124,21 @@ def test_bad_cycles_or_fallback_is_one_line_and_exit_2(argv, message, tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_results_judged_by_the_old_rule_are_not_resumed(tmp_path: Path, capsys) -> None:
+    """A bench folder written before --cycles and --place-fallback existed holds episodes whose
+    place point could move unreported: --resume refuses to add strict episodes to them."""
+    import json
+
+    from experiments.bench.jobs import append_line
+
+    append_line(tmp_path / "results.jsonl", LINES[0])
+    old = {"scene": "random", "blocks": "2:4", "controller": "kb", "approach": "auto"}
+    (tmp_path / "bench.json").write_text(json.dumps({**old, "models": None}))
+    before = (tmp_path / "results.jsonl").read_bytes()
+    argv = ["--blocks", "2:4", "--controller", "kb", "--seeds", "0:2", "--resume"]
+    assert bench.main([*argv, "--out", str(tmp_path)]) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "--resume" in err and "old rule" in err, err
+    assert (tmp_path / "results.jsonl").read_bytes() == before
