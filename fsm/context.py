@@ -28,6 +28,12 @@ CONTROLLERS = ("pi", "kb", "ql")
 APPROACH_CHOICES = ("auto", "top", "lateral")
 #: Grasp models of a top grasp (``--model``).
 GRASP_MODELS = ("planar", "3d")
+#: What Deliver may do when it cannot set the block down at the place point asked for: "none"
+#: fails the episode there (the default: an episode is judged where it was asked to deliver);
+#: "nearest" delivers to the nearest free slot and reports it as delivered elsewhere.
+PLACE_FALLBACKS = ("none", "nearest")
+#: Who chose a cycle's place point (``CycleRecord.place_chosen_by``).
+PLACE_BY_USER, PLACE_BY_SCENE, PLACE_BY_TASK = "user", "scene", "task cycle"
 
 
 @dataclass(frozen=True)
@@ -41,6 +47,7 @@ class EpisodeOptions:
     pick_pixel: tuple[float, float] | None = None  #: (u, v) in the vision image
     place: tuple[float, float] | None = None  #: world (x, y) of the first place point
     place_pixel: tuple[float, float] | None = None
+    place_fallback: str = "none"  #: one of PLACE_FALLBACKS
     controller: str = "pi"
     approach: str = "auto"
     #: "planar" (the paper's controllers, contacts at the fingertips' height) or "3d" (contacts
@@ -59,10 +66,23 @@ class CycleRecord:
 
     index: int
     block: str | None = None  #: scene name of the picked block (for judging)
-    place: tuple[float, float] | None = None
+    #: the place point asked for (--place, --place-pixel or the scene's; None in later cycles of
+    #: --cycles, where no point was asked for), who chose the point used (PLACE_BY_*), the point
+    #: the block was taken to and judged at, and whether that is another point than the asked
+    #: one (--place-fallback nearest), how far (mm) from it
+    place_asked: tuple[float, float] | None = None
+    place_chosen_by: str = ""
+    place_used: tuple[float, float] | None = None
+    delivered_elsewhere: bool = False
+    place_moved_mm: float | None = None
     approach: str = ""
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
+    #: why each other block Select/Model could not model was not (each then counts as an
+    #: obstacle: its pixels' hull grown by fsm.perception.OBSTACLE_MARGIN)
+    obstacles_not_modelled: list[str] = field(default_factory=list)
+    #: blocks a later cycle could not model and passed over for the next one, and why
+    skipped_not_modelled: list[str] = field(default_factory=list)
     contacts: list[list[float]] | None = None  #: world contact points, finger order
     contact_theta: list[float] | None = None
     s_g: float | None = None
@@ -97,6 +117,9 @@ class Episode:
     cycles: list[CycleRecord] = field(default_factory=list)
     delivered: list[str] = field(default_factory=list)  #: scene names of delivered blocks
     place: NDArray[np.float64] | None = None
+    #: the arm's posture when the first Select/Model looked (parked clear of the view); Deliver
+    #: returns the arm there before the next cycle's Select/Model
+    parked_arm: NDArray[np.float64] | None = None
     #: the other blocks' perceived footprints and the picked block's circumradius (m), for the
     #: next place slot when the hand cannot set the block down at this cycle's first
     place_footprints: list[NDArray[np.float64]] = field(default_factory=list)
@@ -137,6 +160,20 @@ class Episode:
         if name is None:
             raise RuntimeError("no block has been picked in this cycle")
         return name
+
+    def use_place(self, point: NDArray[np.float64]) -> None:
+        """Take this cycle's block to ``point`` (world xy): the record's ``place_used``, and
+        whether it lies elsewhere than the point asked for, how far, and the recording."""
+        self.place = np.asarray(point, dtype=float)
+        record = self.record
+        record.place_used = (float(self.place[0]), float(self.place[1]))
+        if record.place_asked is not None:
+            moved = float(np.linalg.norm(self.place - np.asarray(record.place_asked)))
+            record.place_moved_mm = 1000.0 * moved
+            record.delivered_elsewhere = moved > 1e-9
+        self.recorder.log_place(
+            record.place_asked, record.place_used, self.world.scene.table.height
+        )
 
     def new_cycle(self) -> CycleRecord:
         self.cycles.append(CycleRecord(index=len(self.cycles)))

@@ -4,7 +4,9 @@
 of :mod:`fsm.handlers`, checking every hand-over against :data:`fsm.states.TRANSITIONS` and every
 state's simulated time against its budget. A failure of any kind (a named reason, an unstable
 simulation, a budget overrun, Ctrl-C) ends the episode in ``Failed`` with its reason; the summary
-and the recording are written in every case.
+and the recording are written in every case. An exception no state names (a bug) is the last
+resort ``internal error``, with the exception's one line as the detail and its traceback in the
+summary; warnings (NumPy's among them) are kept in the summary, not printed.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from __future__ import annotations
 import json
 import os
 import time
+import traceback
+import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -65,6 +69,10 @@ class EpisodeResult:
     sim_time: float = 0.0
     wall_time: float = 0.0
     rrd: str | None = None
+    #: warnings raised during the episode (``file:line: Category: message``, each once)
+    warnings: list[str] = field(default_factory=list)
+    #: the traceback of an ``internal error`` (None otherwise)
+    traceback: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)
@@ -127,6 +135,34 @@ class Clock:
             )
 
 
+#: Warnings kept in the summary, at most.
+MAX_WARNINGS = 20
+
+
+def internal_error_detail(error: BaseException) -> str:
+    """One line naming an unexpected exception and where it was raised:
+    ``IndexError: <message> (vision/hough.py:72 in fit_tls)``."""
+    message = " ".join(str(error).split()) or "(no message)"
+    frames = traceback.extract_tb(error.__traceback__)
+    where = ""
+    if frames:
+        last = frames[-1]
+        parts = Path(last.filename).parts
+        where = f" ({'/'.join(parts[-2:])}:{last.lineno} in {last.name})"
+    return f"{type(error).__name__}: {message}{where}"
+
+
+def _warning_lines(caught: list[warnings.WarningMessage]) -> list[str]:
+    """Each distinct warning once, as ``file:line: Category: message``."""
+    out: list[str] = []
+    for w in caught:
+        parts = Path(w.filename).parts
+        line = f"{'/'.join(parts[-2:])}:{w.lineno}: {w.category.__name__}: {w.message}"
+        if line not in out:
+            out.append(line)
+    return out[:MAX_WARNINGS]
+
+
 def _failure_for(state: State, error: Exception) -> tuple[Failure, str]:
     if isinstance(error, TaskFailedError):
         return error.failure, error.detail
@@ -141,7 +177,7 @@ def _failure_for(state: State, error: Exception) -> tuple[Failure, str]:
             State.COARSE_REACH: Failure.NO_COARSE_PATH,
         }
         return mapping.get(state, Failure.FINGERS_CANNOT_REACH), str(error)
-    raise error
+    return Failure.INTERNAL_ERROR, f"{state.value}: {internal_error_detail(error)}"
 
 
 def run_episode(
@@ -180,50 +216,80 @@ def run_episode(
     clock = Clock(world, recorder)
     world.on_step = clock
     state = State.SELECT_MODEL
+    caught: list[warnings.WarningMessage] = []
     try:
-        while state not in (State.DONE, State.FAILED):
-            visit = Visit(state.value, ep.cycle, world.time)
-            result.visits.append(visit)
-            clock.enter(state)
-            if announce is not None:
-                announce(
-                    f"[sim {world.time:7.2f} s | wall {time.perf_counter() - wall0:6.1f} s] "
-                    f"cycle {ep.cycle}: {state.value}"
-                )
-            t0 = time.perf_counter()
-            try:
-                step = HANDLERS[state](ep)
-                following, reason = step.next, step.reason
-            except (TaskFailedError, SimulationError, BudgetExceededError, ReachError) as e:
-                failure, detail = _failure_for(state, e)
-                following, reason = State.FAILED, f"{failure.value}: {detail}"
-                result.failure, result.failure_detail = failure.value, detail
-                if ep.cycles:
-                    ep.record.failure, ep.record.failure_detail = failure.value, detail
-            if not allowed(state, following):
-                raise RuntimeError(f"the machine went from {state.value} to {following.value}")
-            visit.sim_seconds = world.time - visit.sim_start
-            visit.wall_seconds = time.perf_counter() - t0
-            visit.reason, visit.next = reason, following.value
-            level = "ERROR" if following is State.FAILED else "INFO"
-            recorder.log_transition(state.value, following.value, reason, level=level)
-            state = following
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            state = _loop(ep, result, clock, announce, wall0)
     except KeyboardInterrupt:
         result.failure, result.failure_detail = Failure.INTERRUPTED.value, "Ctrl-C"
         if ep.cycles:
             ep.record.failure = Failure.INTERRUPTED.value
         raise
+    except Exception as e:  # the machine's own bug, outside any state: named all the same
+        result.failure = Failure.INTERNAL_ERROR.value
+        result.failure_detail = f"the machine: {internal_error_detail(e)}"
+        result.traceback = "".join(traceback.format_exception(e))
     finally:
         world.on_step = None
         picked = [c for c in ep.cycles if c.block is not None]
-        result.success = state is State.DONE and bool(picked) and all(c.success for c in picked)
+        result.success = result.failure is None and bool(picked) and all(c.success for c in picked)
+        if not result.success and result.failure is None:  # never a failure without a reason
+            result.failure = Failure.INTERNAL_ERROR.value
+            result.failure_detail = f"the machine stopped in {state.value} without a reason"
         result.cycles = [_jsonable(asdict(c)) for c in ep.cycles if c.block is not None]
         result.sim_time = world.time
         result.wall_time = time.perf_counter() - wall0
+        result.warnings = _warning_lines(caught)
         try:
             verdict = "delivered" if result.success else f"failed: {result.failure}"
             recorder.log_verdict(result.success, verdict)
         finally:
-            recorder.close()
-        write_summary(summary_path, result)
+            try:
+                recorder.close()
+            finally:
+                write_summary(summary_path, result)
     return result
+
+
+def _loop(
+    ep: Episode,
+    result: EpisodeResult,
+    clock: Clock,
+    announce: Callable[[str], None] | None,
+    wall0: float,
+) -> State:
+    """Enter states from Select/Model until Done or Failed; return the last. Any exception of
+    a state (but Ctrl-C) ends the episode in Failed with a named reason (:func:`_failure_for`)."""
+    world, recorder = ep.world, ep.recorder
+    state = State.SELECT_MODEL
+    while state not in (State.DONE, State.FAILED):
+        visit = Visit(state.value, ep.cycle, world.time)
+        result.visits.append(visit)
+        clock.enter(state)
+        if announce is not None:
+            announce(
+                f"[sim {world.time:7.2f} s | wall {time.perf_counter() - wall0:6.1f} s] "
+                f"cycle {ep.cycle}: {state.value}"
+            )
+        t0 = time.perf_counter()
+        try:
+            step = HANDLERS[state](ep)
+            following, reason = step.next, step.reason
+            if not allowed(state, following):
+                raise RuntimeError(f"the machine went from {state.value} to {following.value}")
+        except Exception as e:  # every failure gets a name (issue 22)
+            failure, detail = _failure_for(state, e)
+            following, reason = State.FAILED, f"{failure.value}: {detail}"
+            result.failure, result.failure_detail = failure.value, detail
+            if failure is Failure.INTERNAL_ERROR:
+                result.traceback = "".join(traceback.format_exception(e))
+            if ep.cycles:
+                ep.record.failure, ep.record.failure_detail = failure.value, detail
+        visit.sim_seconds = world.time - visit.sim_start
+        visit.wall_seconds = time.perf_counter() - t0
+        visit.reason, visit.next = reason, following.value
+        level = "ERROR" if following is State.FAILED else "INFO"
+        recorder.log_transition(state.value, following.value, reason, level=level)
+        state = following
+    return state

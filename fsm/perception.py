@@ -4,12 +4,14 @@ point of the cycle."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.palm_candidates import robot_base_xy
-from fsm.context import EpisodeOptions
+from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
 from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.states import Failure, TaskFailedError
 from hand_sim.geometry import point_in_convex_polygon
@@ -32,23 +34,23 @@ def on_table(world: World, selection: Selection, index: int) -> bool:
     return bool(world.scene.table.contains(centre[None], margin=0.0))
 
 
-def choose_block(
+def choose_blocks(
     world: World,
     selection: Selection,
     options: EpisodeOptions,
     cycle: int,
     delivered: list[str],
-) -> int:
-    """Index (in ``selection``) of the block cycle ``cycle`` picks: the first cycle's as
-    ``options`` ask (a pixel, a name, or the scene's target); later cycles the remaining block on
-    the table (not in ``delivered``) nearest the arm's base. Raises LookupError when none is
-    left."""
+) -> list[int]:
+    """Indices (in ``selection``) of the blocks cycle ``cycle`` may pick, in the order to try
+    them: the first cycle's one block as ``options`` ask (a pixel, a name, or the scene's
+    target); in later cycles the remaining blocks on the table (not in ``delivered``), nearest
+    the arm's base first (one that cannot be modelled gives way to the next). Raises
+    LookupError when none is left."""
     sel = selection
     if cycle == 0 and options.pick_pixel is not None:
-        return sel.index_at_pixel(options.pick_pixel)
+        return [sel.index_at_pixel(options.pick_pixel)]
     if cycle == 0:
-        return sel.index_of_name(options.pick or world.scene.target)
-    # later cycles: the remaining block nearest the place point is cleared first
+        return [sel.index_of_name(options.pick or world.scene.target)]
     remaining = [
         i
         for i, name in enumerate(sel.names)
@@ -58,7 +60,17 @@ def choose_block(
         raise LookupError("no block left")
     centres = sel.block_centres()[:, :2]
     base = np.asarray(robot_base_xy(world))
-    return min(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
+    return sorted(remaining, key=lambda i: float(np.linalg.norm(centres[i] - base)))
+
+
+@dataclass(frozen=True)
+class PlaceChoice:
+    """A cycle's place point: the one asked for (None when nothing was asked: the later cycles of
+    ``--cycles``), who chose the point to use (``fsm.context.PLACE_BY_*``) and that point."""
+
+    asked: NDArray[np.float64] | None
+    chosen_by: str
+    point: NDArray[np.float64]
 
 
 def place_for_cycle(
@@ -68,45 +80,83 @@ def place_for_cycle(
     footprints: list[NDArray[np.float64]],
     radius: float,
     place_reach: tuple[float, float],
-) -> NDArray[np.float64]:
-    """This cycle's place point for a block of circumradius ``radius`` (m): the asked one first
-    (it must be clear of the other blocks' ``footprints``), then free slots near it within
-    ``place_reach`` (m) of the arm's base. Raises :class:`TaskFailedError` when there is none."""
+) -> PlaceChoice:
+    """This cycle's place point for a block of circumradius ``radius`` (m). The first cycle's is
+    the one asked for (``--place`` / ``--place-pixel``, else the scene's); it must be clear of the
+    other blocks' ``footprints``, or, with ``--place-fallback nearest``, the nearest free slot is
+    used instead. Later cycles choose their own: the free slot nearest the first place point,
+    within ``place_reach`` (m) of the arm's base. Raises :class:`TaskFailedError` when there is
+    none."""
     scene = world.scene
-    first = np.asarray(options.place if options.place is not None else scene.place)
-    if cycle == 0:
-        if not place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
-            raise TaskFailedError(
-                Failure.PLACE_UNREACHABLE,
-                f"place point {first.round(3).tolist()} is occupied by another block",
-            )
-        return first
+    first = np.asarray(options.place if options.place is not None else scene.place, dtype=float)
     reach = (robot_base_xy(world), *place_reach)
+    if cycle == 0:
+        by = PLACE_BY_SCENE if options.place is None else PLACE_BY_USER
+        if place_is_free(first, radius, footprints, scene.table, ASKED_CLEARANCE):
+            return PlaceChoice(first, by, first)
+        occupied = f"place point {first.round(3).tolist()} is occupied by another block"
+        slot = None
+        if options.place_fallback == "nearest":
+            slot = free_slot(first, radius, footprints, scene.table, reach)
+        if slot is None:
+            hint = (
+                "; no free slot near it either"
+                if options.place_fallback == "nearest"
+                else " (--place-fallback nearest would deliver to the nearest free slot)"
+            )
+            raise TaskFailedError(Failure.PLACE_UNREACHABLE, occupied + hint)
+        return PlaceChoice(first, by, slot)
     slot = free_slot(first, radius, footprints, scene.table, reach)
     if slot is None:
         raise TaskFailedError(Failure.PLACE_UNREACHABLE, "no free place slot left on the table")
-    return slot
+    return PlaceChoice(None, PLACE_BY_TASK, slot)
+
+
+#: A block Select/Model cannot model stands in the way as the convex hull of its top face's
+#: pixels grown by this margin (m) on every side.
+OBSTACLE_MARGIN = 0.01
+
+
+def obstacle_footprint(
+    selection: Selection, index: int, margin: float = OBSTACLE_MARGIN
+) -> NDArray[np.float64] | None:
+    """World footprint (k, 2) of block ``index`` of ``selection`` as an obstacle, without its
+    polygon: the convex hull of its top face's pixels cast onto the top's plane, grown by
+    ``margin`` (m) (eight offsets of every hull point, hulled again, so that a region of one
+    pixel or one pixel wide still gives an area). None when the region has no pixel."""
+    region = selection.blocks[index]
+    v, u = np.nonzero(region.top_mask)
+    if u.size == 0:
+        return None
+    g = selection.observation.geometry
+    pixels = np.unique(np.column_stack([u, v]).astype(np.float32), axis=0)
+    hull = cv2.convexHull(pixels).reshape(-1, 2) if len(pixels) >= 3 else pixels
+    xy = g.pixel_to_plane(hull.astype(float), region.z_top)[:, :2]
+    angles = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
+    ring = margin * np.column_stack([np.cos(angles), np.sin(angles)])
+    grown = (xy[:, None, :] + ring[None]).reshape(-1, 2).astype(np.float32)
+    return cv2.convexHull(grown).reshape(-1, 2).astype(float)
 
 
 def other_footprints(
     world: World, selection: Selection, index: int, picked: NDArray[np.float64]
-) -> list[NDArray[np.float64]]:
+) -> tuple[list[NDArray[np.float64]], list[str]]:
     """World footprints of the blocks of ``selection`` on the table other than ``index`` (whose
-    perceived world vertices are ``picked``), as perceived (a block whose polygon cannot be
-    extracted counts by its convex region of pixels on the table plane)."""
+    perceived world vertices are ``picked``), as perceived, and why each block that could not be
+    modelled was not: such a block counts as an obstacle by :func:`obstacle_footprint`."""
     out = []
-    g = selection.observation.geometry
+    unmodelled = []
     centres = selection.block_centres()[:, :2]
-    for i, region in enumerate(selection.blocks):
+    for i in range(len(selection.blocks)):
         if i == index or not on_table(world, selection, i):
             continue
         if point_in_convex_polygon(centres[i], picked):
             continue  # a fragment of the picked block's own view
         try:
             out.append(selection.model(i).world_vertices)
-        except VisionError:
-            v, u = np.nonzero(region.top_mask)
-            pixels = np.column_stack([u, v]).astype(np.float32)
-            hull = cv2.convexHull(pixels).reshape(-1, 2)
-            out.append(np.array([g.pixel_to_plane(p, region.z_top)[:2] for p in hull]))
-    return out
+        except VisionError as e:
+            unmodelled.append(str(e))
+            footprint = obstacle_footprint(selection, i)
+            if footprint is not None:
+                out.append(footprint)
+    return out, unmodelled

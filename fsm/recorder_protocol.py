@@ -75,6 +75,16 @@ class TaskRecorder(Protocol):
         """One Wrench Closure controller step."""
         return None
 
+    def log_place(
+        self,
+        asked: tuple[float, float] | None,
+        used: tuple[float, float] | None,
+        table_z: float,
+    ) -> None:
+        """The place point asked for (None: the task cycle chose it) and the one the block is
+        taken to, world xy on the table top at height ``table_z``."""
+        return None
+
     def log_reachability(self, loop: int, reachable: bool, reason: str) -> None:
         """One turn of the Wrench Closure <-> Posture Control loop."""
         return None

@@ -11,7 +11,8 @@ contacts with the target block: see :mod:`hand_sim.telemetry`); the machine hook
 The machine's own records: ``events`` (a TextLog entry per transition, reachability loop and the
 verdict), the Select/Model image with its pinhole at ``world/cameras/<name>`` and the extracted
 polygon over it (2D) and in 3D (``world/perceived/<name>``, also projected onto the overhead
-image), and each Wrench Closure step (``scalars/synthesis/...`` and the virtual contacts
+image), the place point asked for and the one used (``world/place/asked``, ``world/place/used``),
+and each Wrench Closure step (``scalars/synthesis/...`` and the virtual contacts
 ``world/synthesis/contacts``).
 
 Timelines: ``sim_time`` (duration, s) and ``step`` (physics step index) for everything;
@@ -65,10 +66,15 @@ VISION_PLANE_DISTANCE = 0.15
 SYNTHESIS_TIMELINE = "synthesis_step"
 #: Where the machine's records go (entity paths).
 PERCEIVED_PATH = "world/perceived"
+PLACE_PATH = "world/place"
 SYNTHESIS_CONTACTS = "world/synthesis/contacts"
 #: Colour (rgb) of the perceived polygon and of the virtual contacts.
 POLYGON_COLOUR = (255, 230, 0)
 VIRTUAL_CONTACT_COLOUR = (255, 0, 255)
+#: Colours (rgb) and radius (m) of the place point asked for and of the one used.
+PLACE_ASKED_COLOUR = (255, 255, 255)
+PLACE_USED_COLOUR = (0, 200, 0)
+PLACE_RADIUS = 0.008
 #: Styles (series under ``scalars/``, rgb colour, label) of the Wrench Closure series.
 SYNTHESIS_SERIES: tuple[tuple[str, tuple[int, int, int], str], ...] = (
     ("synthesis/eps_fc", (230, 60, 60), "eps_FC"),
@@ -342,6 +348,35 @@ class EpisodeRecorder(ClosesOnExit):
         finally:
             stream.disable_timeline(SYNTHESIS_TIMELINE)
         self._synthesis_last = k
+
+    def log_place(
+        self,
+        asked: tuple[float, float] | None,
+        used: tuple[float, float] | None,
+        table_z: float,
+    ) -> None:
+        """The place point asked for (``world/place/asked``, white; cleared when the task cycle
+        chose the point itself) and the one the block is taken to (``world/place/used``, green),
+        on the table top at ``table_z``, labelled with their distance when they differ."""
+        self.telemetry.set_time_now()
+        stream = self.recorder.stream
+        for key, point, colour in (
+            ("asked", asked, PLACE_ASKED_COLOUR),
+            ("used", used, PLACE_USED_COLOUR),
+        ):
+            if point is None:
+                stream.log(f"{PLACE_PATH}/{key}", rr.Points3D(np.zeros((0, 3))))
+                continue
+            label = f"place point {key}"
+            if key == "used" and asked is not None and used is not None:
+                moved = 1000.0 * float(np.hypot(used[0] - asked[0], used[1] - asked[1]))
+                if moved > 1e-6:
+                    label += f" ({moved:.0f} mm from the asked one)"
+            xyz = _points(f"place {key}", [[point[0], point[1], table_z]], 3, min_rows=1)
+            stream.log(
+                f"{PLACE_PATH}/{key}",
+                rr.Points3D(xyz, radii=PLACE_RADIUS, colors=[colour], labels=[label]),
+            )
 
     def _log_scene_now(self) -> None:
         """The moving bodies' poses and the perceived polygons at the stream's current times

@@ -1,8 +1,10 @@
 """``python -m fsm.run``: one pick-and-place task cycle (section 5.2) on a scene, recorded.
 
-Exit status: 0 every asked block delivered, 1 the task failed (the reason is printed), 2 bad
-input (one line on stderr saying what is wrong), 130 interrupted (Ctrl-C). ``DIR/summary.json``
-and ``DIR/episode.rrd`` are written in every case but bad input.
+Exit status: 0 every asked block delivered (at the place point asked for, or, with
+``--place-fallback nearest``, at the nearest free slot, reported as delivered elsewhere), 1 the
+task failed (the named reason is printed; an exception no state names is ``internal error``), 2
+bad input (one line on stderr saying what is wrong), 130 interrupted (Ctrl-C).
+``DIR/summary.json`` and ``DIR/episode.rrd`` are written in every case but bad input.
 """
 
 from __future__ import annotations
@@ -14,7 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from fsm.context import APPROACH_CHOICES, CONTROLLERS, GRASP_MODELS, EpisodeOptions, out_paths
+from fsm.context import (
+    APPROACH_CHOICES,
+    CONTROLLERS,
+    GRASP_MODELS,
+    PLACE_FALLBACKS,
+    EpisodeOptions,
+    out_paths,
+)
 from fsm.layout import ASKED_CLEARANCE, episode_scene, place_is_free
 from hand_sim.clitools import (
     ERRORS,
@@ -65,6 +74,31 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
     )
 
 
+def add_place_fallback(ap: argparse.ArgumentParser) -> None:
+    """``--place-fallback``, as ``fsm.run`` and ``experiments.bench`` take it."""
+    ap.add_argument(
+        "--place-fallback",
+        default="none",
+        choices=PLACE_FALLBACKS,
+        help="when the block cannot be set down at the place point asked for (--place, "
+        "--place-pixel or the scene's): none fails the episode there; nearest delivers to the "
+        "nearest free slot and reports the block as delivered elsewhere",
+    )
+
+
+def parse_cycles(text: str) -> int | None:
+    """``--cycles N|all``: N blocks one after another (1..MAX_CYCLES), or None for all."""
+    if text == "all":
+        return None
+    try:
+        cycles = int(text)
+    except ValueError:
+        cycles = 0
+    if not 1 <= cycles <= MAX_CYCLES:
+        raise CommandLineError("--cycles", f"must be 1-{MAX_CYCLES} or 'all', got {text!r}")
+    return cycles
+
+
 #: Argument type of a pixel (column, row) of the overhead image.
 pixel = numbers(2, "U,V")
 
@@ -113,6 +147,7 @@ def parser() -> ArgumentParser:
         metavar="U,V",
         help=f"place at the table point seen at this pixel of the {image}",
     )
+    add_place_fallback(ap)
     add_controller_and_approach(ap)
     ap.add_argument(
         "--cycles",
@@ -190,17 +225,7 @@ def _resolve_pixels(
 def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
     """Parse and check every flag before any work starts (:class:`CommandLineError` otherwise)."""
     args = parser().parse_args(argv)
-    if args.cycles == "all":
-        cycles = None
-    else:
-        try:
-            cycles = int(args.cycles)
-        except ValueError:
-            cycles = 0
-        if not 1 <= cycles <= MAX_CYCLES:
-            raise CommandLineError(
-                "--cycles", f"must be 1-{MAX_CYCLES} or 'all', got {args.cycles!r}"
-            )
+    cycles = parse_cycles(args.cycles)
     scene = episode_scene(args.scene, args.seed, args.blocks)
     pick = args.pick
     if pick is not None and pick not in scene.block_names:
@@ -231,6 +256,7 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         pick=target if (pick or args.pick_pixel is not None) else None,
         pick_pixel=None,
         place=place,
+        place_fallback=args.place_fallback,
         controller=args.controller,
         approach=args.approach,
         grasp_model=args.model,
@@ -251,9 +277,17 @@ def run(argv: Sequence[str] | None) -> int:
     if result.success:
         for c in result.cycles:
             j = c["judgement"]
+            used = [round(v, 3) for v in c["place_used"]]
+            where = f"the place point {used} ({c['place_chosen_by']})"
+            if c["delivered_elsewhere"]:
+                asked = [round(v, 3) for v in c["place_asked"]]
+                where = (
+                    f"the free slot {used}: delivered ELSEWHERE, {c['place_moved_mm']:.0f} mm "
+                    f"from the place point asked for {asked} ({c['place_chosen_by']})"
+                )
             print(
                 f"delivered {c['block']} ({c['approach']} grasp, S_G {c['s_g']:.3f}): "
-                f"{j['place_error_mm']:.1f} mm from the place point, tilt {j['tilt_deg']:.1f} deg"
+                f"{j['place_error_mm']:.1f} mm from {where}, tilt {j['tilt_deg']:.1f} deg"
             )
     else:
         print(f"FAILED: {result.failure}: {result.failure_detail}")

@@ -40,6 +40,8 @@ class Failure(Enum):
     TIME_BUDGET_EXCEEDED = "time budget exceeded"
     NOT_PLACED = "block not placed as asked"  # the physical judgement after the retreat
     INTERRUPTED = "interrupted"
+    #: the last resort: an exception no state names (a bug); its one line is the detail
+    INTERNAL_ERROR = "internal error"
 
 
 class TaskFailedError(Exception):
@@ -60,7 +62,11 @@ class Step:
 
 
 #: Reasons any state can end with.
-ANY_STATE_FAILURES = (Failure.SIMULATION_UNSTABLE, Failure.TIME_BUDGET_EXCEEDED)
+ANY_STATE_FAILURES = (
+    Failure.SIMULATION_UNSTABLE,
+    Failure.TIME_BUDGET_EXCEEDED,
+    Failure.INTERNAL_ERROR,
+)
 #: Times Wrench Closure may send the machine back to Posture Control before giving up (the paper's
 #: "after a number of transitions between both modules"), and Fine Reach <-> Posture Control.
 MAX_POSTURE_RETRIES = 4

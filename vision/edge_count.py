@@ -67,11 +67,19 @@ def add_missed_lines(
         far = usable & (boundary_distance(pts, verts) > far_distance)
         for m in members:
             far[m] = False
-        extra = line_from_run(pts, longest_run(far), centre)
+        far_run = longest_run(far)
+        extra = line_from_run(pts, far_run, centre)
         if extra is None:
             break
+        # refit to the points near the proposed line; when too few lie within the fit distance
+        # (a noisy run), the line keeps the run it was proposed from: a line never carries an
+        # empty set of points (merging two such lines once fitted a line to no point at all)
         run = longest_run(usable & (np.abs(extra.distance(pts)) < fit_distance))
-        extra = line_from_run(pts, run, centre) or extra
+        refit = line_from_run(pts, run, centre)
+        if refit is None:
+            run = far_run
+        else:
+            extra = refit
         lines, members = merge_lines([*lines, extra], [*members, run], pts, centre)
         verts, _ = polygon_of_lines(lines, box)
     return lines, members
@@ -189,6 +197,8 @@ def merge_adjacent(
         best, best_cost = None, MERGE_CHI2 * sigma_e**2
         for i in range(len(tags)):
             a, b = tags[i], tags[(i + 1) % len(tags)]
+            if min(len(members[a]), len(members[b])) < MIN_SUPPORT:
+                continue  # a line without its own points is not weighed against another
             joined = np.concatenate([members[a], members[b]])
             line, rss_joint = _rss(pts[joined], centre)
             cost = rss_joint - _rss(pts[members[a]], centre)[1] - _rss(pts[members[b]], centre)[1]

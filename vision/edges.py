@@ -46,13 +46,24 @@ class Outline:
     trusted: NDArray[np.bool_]  #: (N,) not next to an occluder or the image border
 
 
+#: ``cv2.remap`` refuses maps with SHRT_MAX (32767) rows or more: points are sampled in rows of
+#: this many (a long outline, such as two blocks' faces merged into one region, has more).
+REMAP_ROW = 4096
+
+
 def sample(img: NDArray[np.float32], pts: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a colour image at points (..., 2)."""
     shape = pts.shape[:-1]
-    flat = pts.reshape(-1, 1, 2)
-    mx = np.ascontiguousarray(flat[..., 0], dtype=np.float32)
-    my = np.ascontiguousarray(flat[..., 1], dtype=np.float32)
+    flat = pts.reshape(-1, 2)
+    n = len(flat)
+    rows = max(1, -(-n // REMAP_ROW))
+    grid = np.zeros((rows * REMAP_ROW, 2), np.float32)
+    grid[:n] = flat
+    grid = grid.reshape(rows, REMAP_ROW, 2)
+    mx = np.ascontiguousarray(grid[..., 0])
+    my = np.ascontiguousarray(grid[..., 1])
     out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out = out.reshape(rows * REMAP_ROW, img.shape[2])[:n]
     return out.reshape(*shape, img.shape[2]).astype(np.float64)
 
 

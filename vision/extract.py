@@ -21,6 +21,8 @@ from vision.segment import BlockRegion, Segmentation
 #: Shortest block edge the model keeps (m): shorter ones are blurred corners. The paper objects'
 #: shortest edge is 21 mm; random convex polygons have edges down to about 5 mm.
 MIN_EDGE_LENGTH = 0.0035
+#: A polygon enclosing less than this (m^2, 1 mm^2) is no block's top face.
+MIN_AREA = 1e-6
 
 
 def _mask_slack(obs: Observation, seg: Segmentation, region: BlockRegion) -> float:
@@ -72,6 +74,11 @@ def model_from_region(
     except ExtractionError as e:
         raise ExtractionError(f"block {label!r} at pixel ({u:.0f}, {v:.0f}): {e}") from e
     world = _world_polygon(px, obs, region.z_top)
+    if not np.all(np.isfinite(world)) or abs(_signed_area(world)) < MIN_AREA:
+        raise ExtractionError(
+            f"block {label!r} at pixel ({u:.0f}, {v:.0f}): its polygon encloses no area "
+            f"({abs(_signed_area(world)) * 1e6:.2f} mm^2)"
+        )
     centroid_xy = _area_centroid(world)
     # Polygon.from_vertices orders CCW; keep the image contour in the same order
     ccw = _signed_area(world) > 0

@@ -18,6 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import ExtractionError
+
 #: Hough resolution: offset (px) and angle (rad); candidate lines examined per transform.
 HOUGH_RHO = 0.5
 HOUGH_THETA = np.pi / 360.0
@@ -64,7 +66,13 @@ class Line:
 
 
 def fit_tls(pts: NDArray[np.float64], inside: NDArray[np.float64]) -> tuple[NDArray, float]:
-    """Total-least-squares line through ``pts``; normal oriented away from ``inside``."""
+    """Total-least-squares line through ``pts``; normal oriented away from ``inside``. Raises
+    :class:`ExtractionError` for fewer than two distinct points (no line is defined)."""
+    if len(pts) < 2 or not np.ptp(pts, axis=0).any():
+        raise ExtractionError(
+            f"an edge line was fitted to {len(pts)} edge point(s) with no extent; the region's "
+            "outline is too short or degenerate to model"
+        )
     mean = pts.mean(axis=0)
     _, _, vt = np.linalg.svd(pts - mean, full_matrices=False)
     n = vt[-1]
@@ -102,7 +110,7 @@ def robust_fit(
         r = pts @ n - c
         mad = float(np.median(np.abs(r[keep] - np.median(r[keep]))))
         keep = np.abs(r) < max(0.25, 4.0 * 1.4826 * mad)
-        if keep.sum() < 2:
+        if keep.sum() < 2 or not np.ptp(pts[keep], axis=0).any():
             break
         n, c = fit_tls(pts[keep], centre)
     return n, c, keep

@@ -42,7 +42,8 @@ def boundary_distance(pts: NDArray[np.float64], verts: NDArray[np.float64]) -> N
     a = verts
     b = np.roll(verts, -1, axis=0)
     ab = b - a
-    t = np.clip(((pts[:, None] - a[None]) * ab[None]).sum(-1) / (ab**2).sum(-1)[None], 0, 1)
+    length2 = np.maximum((ab**2).sum(-1), 1e-18)  # a zero-length edge is its vertex
+    t = np.clip(((pts[:, None] - a[None]) * ab[None]).sum(-1) / length2[None], 0, 1)
     proj = a[None] + t[..., None] * ab[None]
     return np.linalg.norm(pts[:, None] - proj, axis=2).min(axis=1)
 

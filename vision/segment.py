@@ -224,6 +224,8 @@ def segment(obs: Observation, tolerance: float | None = None) -> Segmentation:
                         off_table.append(part)
                         continue
                     top = part & (np.abs(z_raw - h) <= tolerance)
+                    if not top.any():  # only pixels the closing filled in: no height of its own
+                        continue
                     regions.append((part, float(np.median(z[top]))))
     regions.sort(key=lambda r: -int(r[0].sum()))
     blocks = []

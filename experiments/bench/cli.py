@@ -42,7 +42,8 @@ from experiments.bench.jobs import (
     read_results,
 )
 from experiments.bench.runners import RAY_LOCAL
-from fsm.run import add_controller_and_approach
+from experiments.bench.stats import DELIVERED, ELSEWHERE, outcome
+from fsm.run import MAX_CYCLES, add_controller_and_approach, add_place_fallback, parse_cycles
 from hand_sim.clitools import (
     ERRORS,
     SEED_MAX,
@@ -62,9 +63,25 @@ PROG = "python -m experiments.bench"
 #: File of the options a bench folder's results belong to.
 SETTINGS_FILE = "bench.json"
 #: Options that must match for ``--resume`` to add to a folder's results.
-RESUME_KEYS = ("scene", "blocks", "controller", "approach", "grasp_model", "models")
-#: Settings a bench written before they existed had (its value then).
-SETTING_DEFAULTS = {"grasp_model": "planar"}
+RESUME_KEYS = (
+    "scene",
+    "blocks",
+    "controller",
+    "approach",
+    "grasp_model",
+    "models",
+    "cycles",
+    "place_fallback",
+)
+#: Settings of a bench folder written before they existed (what those benches ran: the planar
+#: grasp model, one cycle, and a place point the hand could not set down at moved to a free slot
+#: unreported, so that their results cannot be resumed under the rule that judges at the point
+#: asked for).
+SETTING_DEFAULTS = {
+    "grasp_model": "planar",
+    "cycles": "1",
+    "place_fallback": "a free slot, unreported (old rule)",
+}
 #: Most episodes one command may ask for.
 MAX_EPISODES = 100_000
 MAX_WORKERS = 1024
@@ -133,6 +150,13 @@ def parser() -> ArgumentParser:
         "(default: the generator's, scenes/random.toml)",
     )
     add_controller_and_approach(ap)
+    ap.add_argument(
+        "--cycles",
+        default="1",
+        help=f"blocks each episode picks and places one after another (1-{MAX_CYCLES}), or "
+        "'all' to clear its table (as python -m fsm.run)",
+    )
+    add_place_fallback(ap)
     ap.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),
@@ -216,7 +240,10 @@ def _check_resume(out: Path, settings: dict[str, Any], resume: bool) -> list[dic
         differ = [k for k in RESUME_KEYS if saved.get(k, SETTING_DEFAULTS.get(k)) != settings[k]]
         if differ:
             was = ", ".join(
-                f"--{k} {saved[k]}" if saved.get(k) is not None else f"no --{k}" for k in differ
+                f"--{k.replace('_', '-')} {saved.get(k, SETTING_DEFAULTS.get(k))}"
+                if saved.get(k, SETTING_DEFAULTS.get(k)) is not None
+                else f"no --{k}"
+                for k in differ
             )
             raise CommandLineError(
                 "--resume",
@@ -230,6 +257,7 @@ def _check_resume(out: Path, settings: dict[str, Any], resume: bool) -> list[dic
 def plan_from_args(argv: Sequence[str] | None) -> Plan:
     """Parse and check every flag before any work starts (:class:`CommandLineError` otherwise)."""
     args = parser().parse_args(argv)
+    cycles = parse_cycles(args.cycles)
     from fsm.layout import episode_scene
 
     if args.blocks is not None and args.scene != "random":
@@ -264,6 +292,8 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "approach": args.approach,
         "grasp_model": args.model,
         "models": models,
+        "cycles": "all" if cycles is None else str(cycles),
+        "place_fallback": args.place_fallback,
     }
     done = _check_resume(out, settings, args.resume)
     finished = {int(line["seed"]) for line in done}
@@ -277,6 +307,8 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             grasp_model=args.model,
             models=models,
             keep_rrd=args.keep_rrd,
+            cycles=cycles,
+            place_fallback=args.place_fallback,
         )
         for s in args.seeds
         if s not in finished
@@ -316,7 +348,7 @@ def _run_jobs(plan: Plan, lines: list[dict[str, Any]]) -> None:
     from graspsim_base.files import write_bytes, write_text
 
     results = plan.out / RESULTS_FILE
-    ok = sum(1 for line in lines if line["seed"] in plan.seeds and line.get("success"))
+    ok = sum(1 for line in lines if line["seed"] in plan.seeds and outcome(line) == DELIVERED)
     failed = len(plan.seeds) - len(plan.jobs) - ok
     with ExitStack() as stack:
         runner = _enter_runner(stack, plan) if plan.jobs else None
@@ -335,20 +367,22 @@ def _run_jobs(plan: Plan, lines: list[dict[str, Any]]) -> None:
                 file=sys.stderr,
             )
         )
-        bar.set_postfix_str(f"{ok} delivered, {failed} failed", refresh=False)
+        bar.set_postfix_str(f"{ok} delivered, {failed} not", refresh=False)
         for result in runner.run(plan.jobs):
             line = result.line
             if result.rrd is not None:
                 write_bytes(plan.out / line["rrd"], result.rrd)
             append_line(results, line)
             lines.append(line)
-            if line.get("success"):
+            kind = outcome(line)
+            if kind == DELIVERED:
                 ok += 1
-            else:
+            else:  # delivered elsewhere is not counted as delivered
                 failed += 1
                 detail = one_line(str(line.get("failure_detail", "")))
-                bar.write(f"seed {line['seed']}: {line.get('failure')}: {detail[:200]}")
-            bar.set_postfix_str(f"{ok} delivered, {failed} failed", refresh=False)
+                what = ELSEWHERE if kind == ELSEWHERE else f"{line.get('failure')}: {detail[:200]}"
+                bar.write(f"seed {line['seed']}: {what}")
+            bar.set_postfix_str(f"{ok} delivered, {failed} not", refresh=False)
             bar.update(1)
 
 
@@ -378,7 +412,8 @@ def run(argv: Sequence[str] | None) -> int:
     print(
         f"{_episodes(s.episodes)} in {plan.out / RESULTS_FILE}: {s.successes} delivered "
         f"({_pct(s.rate.estimate)}, Wilson 95 % [{_pct(s.rate.low)}, {_pct(s.rate.high)}]), "
-        f"{s.episodes - s.successes} failed; {len(lines) - len(plan.done)} run now in "
+        f"{s.elsewhere} delivered elsewhere, {s.episodes - s.successes - s.elsewhere} failed; "
+        f"{len(lines) - len(plan.done)} run now in "
         f"{time.perf_counter() - wall0:.0f} s; wrote {report}"
     )
     return code

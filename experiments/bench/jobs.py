@@ -64,6 +64,8 @@ class Job:
     grasp_model: str = "planar"  #: "planar" or "3d" (fsm.run --model)
     models: str | None = None  #: trained models folder (None: the shipped ones)
     keep_rrd: bool = False  #: return the recording of a success too
+    cycles: int | None = 1  #: blocks picked one after another (None: clear the table)
+    place_fallback: str = "none"  #: as fsm.run's --place-fallback
 
 
 @dataclass(frozen=True)
@@ -94,8 +96,9 @@ def run_job(job: Job) -> JobResult:
     line: the episode's ``summary.json`` plus ``seed`` and ``blocks`` (the scene's block count).
     ``options.out`` is null (the folder is gone) and ``rrd`` names the kept recording, if any.
 
-    An exception other than Ctrl-C does not stop the bench: the line then says
-    ``failure = "episode crashed"`` with the exception in ``failure_detail`` and ``traceback``."""
+    An exception other than Ctrl-C outside the task cycle's states (the episode names any inside
+    them) does not stop the bench: the line then says ``failure = "episode crashed"`` with the
+    exception in ``failure_detail`` and ``traceback``."""
     from fsm.context import EpisodeOptions, out_paths
     from fsm.layout import episode_scene
     from fsm.machine import run_episode
@@ -108,7 +111,8 @@ def run_job(job: Job) -> JobResult:
             controller=job.controller,
             approach=job.approach,
             grasp_model=job.grasp_model,
-            cycles=1,
+            cycles=job.cycles,
+            place_fallback=job.place_fallback,
             out=Path(tmp),
             record=True,
             models=None if job.models is None else Path(job.models),

@@ -93,9 +93,8 @@ def plot_success(s: BenchSummary, path: Path) -> None:
 
 
 def plot_failures(s: BenchSummary, path: Path) -> None:
-    with _plot(
-        path, f"Failure reasons ({s.episodes - s.successes} of {s.episodes} episodes)"
-    ) as ax:
+    failed = s.episodes - s.successes - s.elsewhere
+    with _plot(path, f"Failure reasons ({failed} of {s.episodes} episodes)") as ax:
         if s.failures:
             reasons = [f.reason for f in s.failures][::-1]
             counts = [f.episodes for f in s.failures][::-1]
@@ -143,9 +142,49 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
     if settings.get("blocks"):
         parts.append(f"--blocks {settings['blocks']}")
     parts += [f"--controller {settings['controller']}", f"--approach {settings['approach']}"]
+    if settings.get("cycles", "1") != "1":
+        parts.append(f"--cycles {settings['cycles']}")
+    if settings.get("place_fallback", "none") != "none":
+        parts.append(f"--place-fallback {settings['place_fallback']}")
     if settings.get("models"):
         parts.append(f"--models {settings['models']}")
     return " ".join(parts)
+
+
+def _cycles_text(settings: dict[str, Any]) -> str:
+    cycles = settings.get("cycles", "1")
+    if cycles == "1":
+        return "one pick and place"
+    if cycles == "all":
+        return "clearing the table block after block (`--cycles all`)"
+    return f"up to {cycles} picks and places one after another (`--cycles {cycles}`)"
+
+
+def _cycles_section(s: BenchSummary) -> list[str]:
+    """``## Cycles``: blocks delivered, delivered elsewhere and failed per cycle, and the share
+    of tables cleared."""
+    out = [
+        "## Cycles",
+        "",
+        "Per cycle (0 is the block asked for; later ones are chosen by the task cycle): the "
+        "episodes that reached it, and its block delivered, delivered elsewhere, or failed "
+        "(the episode ends there).",
+        "",
+        "| cycle | reached | delivered | delivered elsewhere | failed |",
+        "|---|---|---|---|---|",
+    ]
+    for r in s.cycles:
+        out.append(f"| {r.cycle} | {r.reached} | {r.delivered} | {r.elsewhere} | {r.failed} |")
+    share = s.tables_cleared / s.episodes if s.episodes else 0.0
+    out += [
+        "",
+        f"Blocks delivered: {sum(r.delivered for r in s.cycles)}, delivered elsewhere: "
+        f"{sum(r.elsewhere for r in s.cycles)}, failed: {sum(r.failed for r in s.cycles)}. "
+        f"Tables cleared (every block of the scene delivered): {s.tables_cleared} of "
+        f"{s.episodes} ({_pct(share)}).",
+        "",
+    ]
+    return out
 
 
 def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
@@ -155,11 +194,15 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "",
         f"`{_command(settings, s.seeds)}`: {s.episodes} episodes, seeds {seed_ranges(s.seeds)}, "
         f"controller `{settings['controller']}`, approach `{settings['approach']}`. "
-        "An episode is one pick and place on a fresh scene, judged physically (fsm.judge).",
+        f"An episode is {_cycles_text(settings)} on a fresh scene, judged physically "
+        "(fsm.judge) at the place point asked for (later cycles: the point the task cycle "
+        "chose). A block the hand could only set down at another point "
+        "(`--place-fallback nearest`) is *delivered elsewhere*: counted apart, never in the "
+        "success rate.",
         "",
         "## Success rate",
         "",
-        "| blocks | episodes | delivered | success rate | Wilson 95 % interval |",
+        "| blocks | episodes | delivered where asked | success rate | Wilson 95 % interval |",
         "|---|---|---|---|---|",
     ]
     rows = [("all", s.episodes, s.successes)] + [
@@ -170,13 +213,16 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         out.append(
             f"| {label} | {n} | {k} | {_pct(r.estimate)} | [{_pct(r.low)}, {_pct(r.high)}] |"
         )
+    failed = s.episodes - s.successes - s.elsewhere
     out += [
         "",
         f"Delivered {s.successes} of {s.episodes}: {_pct(s.rate.estimate)}, Wilson 95 % interval "
-        f"[{_pct(s.rate.low)}, {_pct(s.rate.high)}] (lower bound {_pct(s.rate.low)}).",
+        f"[{_pct(s.rate.low)}, {_pct(s.rate.high)}] (lower bound {_pct(s.rate.low)}). "
+        f"Delivered elsewhere: {s.elsewhere}. Failed: {failed}.",
         "",
         f"![success rate]({FIGURES['success']})",
         "",
+        *(_cycles_section(s) if settings.get("cycles", "1") != "1" else []),
         "## Failure reasons",
         "",
     ]

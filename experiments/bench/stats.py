@@ -1,6 +1,13 @@
 """The numbers of a bench report, from the lines of ``results.jsonl`` alone: the success rate with
 its Wilson score interval, the failure reasons, the place error of the judged deliveries and the
-wall time each state of the task cycle (section 5.2, Figure 14) took."""
+wall time each state of the task cycle (section 5.2, Figure 14) took.
+
+An episode is *delivered* when every block it asked for went where it was asked (the success
+rate counts these only), *delivered elsewhere* when it succeeded only because
+``--place-fallback nearest`` took a block to another point than the one asked for (its own
+count, never in the success rate), and *failed* otherwise. With ``--cycles N|all`` the report
+also counts, per cycle, the blocks delivered, delivered elsewhere and failed, and the share of
+tables cleared (every block of the scene delivered)."""
 
 from __future__ import annotations
 
@@ -21,6 +28,57 @@ Z95 = float(ndtri(0.975))
 PLACE_PERCENTILES = (50, 90, 95, 99)
 #: Label of a failed episode without a named reason (should not happen; shown if it does).
 NO_REASON = "(no reason given)"
+#: An episode's outcome (:func:`outcome`).
+DELIVERED, ELSEWHERE, FAILED = "delivered", "delivered elsewhere", "failed"
+
+
+def outcome(line: dict[str, Any]) -> str:
+    """DELIVERED, ELSEWHERE (a success only because a block went to another point than the one
+    asked for) or FAILED, of one results line (lines from before ``delivered_elsewhere``
+    existed count as delivered where asked: their judge knew no other point)."""
+    if not line.get("success"):
+        return FAILED
+    moved = any(c.get("delivered_elsewhere") for c in line.get("cycles") or [])
+    return ELSEWHERE if moved else DELIVERED
+
+
+@dataclass(frozen=True)
+class CycleRow:
+    """Blocks of cycle ``cycle`` (0-based) over the episodes: how many reached it (entered its
+    Select/Model and picked or failed), were delivered, delivered elsewhere, or failed."""
+
+    cycle: int
+    reached: int
+    delivered: int
+    elsewhere: int
+    failed: int
+
+
+def cycle_rows(eps: Sequence[dict[str, Any]]) -> tuple[CycleRow, ...]:
+    """Per-cycle counts (:class:`CycleRow`): a cycle's block is delivered (or elsewhere) when its
+    record succeeded; an episode that failed failed in the cycle after its last success."""
+    counts: dict[int, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
+    for e in eps:
+        good = [c for c in e.get("cycles") or [] if c.get("success")]
+        for k, c in enumerate(good):
+            row = counts[k]
+            row[0] += 1
+            row[2 if c.get("delivered_elsewhere") else 1] += 1
+        if not e.get("success"):
+            row = counts[len(good)]
+            row[0] += 1
+            row[3] += 1
+    return tuple(CycleRow(k, *counts[k]) for k in sorted(counts))
+
+
+def table_cleared(line: dict[str, Any]) -> bool:
+    """Whether every block of the episode's scene was delivered (where asked or elsewhere)."""
+    delivered = sum(1 for c in line.get("cycles") or [] if c.get("success"))
+    return (
+        bool(line.get("success"))
+        and line.get("blocks") is not None
+        and (delivered >= int(line["blocks"]))
+    )
 
 
 @dataclass(frozen=True)
@@ -70,7 +128,7 @@ class BenchSummary:
     """Everything the report shows."""
 
     episodes: int
-    successes: int
+    successes: int  #: delivered where asked (DELIVERED)
     rate: Interval
     by_blocks: tuple[tuple[int | None, int, int], ...]  #: (blocks, episodes, successes)
     failures: tuple[FailureRow, ...]  #: most frequent first
@@ -80,6 +138,9 @@ class BenchSummary:
     wall_per_episode: tuple[float, ...]  #: s
     sim_per_episode: tuple[float, ...]  #: s
     seeds: tuple[int, ...]
+    elsewhere: int = 0  #: episodes delivered elsewhere (ELSEWHERE), not in the success rate
+    cycles: tuple[CycleRow, ...] = ()
+    tables_cleared: int = 0
 
 
 def _state_order(names: set[str]) -> list[str]:
@@ -96,7 +157,8 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
     eps = [unique[s] for s in sorted(unique)]
     if not eps:
         raise ValueError("no episode to summarize")
-    ok = [bool(e.get("success")) for e in eps]
+    kinds = [outcome(e) for e in eps]
+    ok = [k == DELIVERED for k in kinds]
     blocks: dict[int | None, list[int]] = defaultdict(lambda: [0, 0])
     for e, good in zip(eps, ok, strict=True):
         row = blocks[e.get("blocks")]
@@ -106,8 +168,8 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         (b, n, k) for b, (n, k) in sorted(blocks.items(), key=lambda kv: (kv[0] is None, kv[0]))
     )
     failed: dict[str, list[int]] = defaultdict(list)
-    for e, good in zip(eps, ok, strict=True):
-        if not good:
+    for e, kind in zip(eps, kinds, strict=True):
+        if kind == FAILED:
             failed[e.get("failure") or NO_REASON].append(int(e["seed"]))
     failures = tuple(
         FailureRow(reason, len(seeds), tuple(seeds))
@@ -155,6 +217,9 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         wall_per_episode=tuple(float(e.get("wall_time", 0.0)) for e in eps),
         sim_per_episode=tuple(float(e.get("sim_time", 0.0)) for e in eps),
         seeds=tuple(sorted(unique)),
+        elsewhere=kinds.count(ELSEWHERE),
+        cycles=cycle_rows(eps),
+        tables_cleared=sum(table_cleared(e) for e in eps),
     )
 
 

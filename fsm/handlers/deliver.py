@@ -7,16 +7,60 @@ from collections import deque
 
 import numpy as np
 
+from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
 from controllers.delivery import plan_delivery
 from controllers.grip import CONTROL_PERIOD, release
 from controllers.palm_candidates import robot_base_xy
 from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
-from fsm.context import Episode
+from fsm.context import CycleRecord, Episode
 from fsm.handlers.common import slides
 from fsm.judge import judge
 from fsm.layout import free_slot
 from fsm.states import Failure, State, Step, TaskFailedError
+
+
+def _elsewhere_note(record: CycleRecord) -> str:
+    """``; delivered elsewhere: ...`` naming the asked and the used point and their distance,
+    when the block goes to another point than the one asked for; else nothing."""
+    if not record.delivered_elsewhere or record.place_asked is None:
+        return ""
+    asked, used = record.place_asked, record.place_used
+    return (
+        f"; delivered elsewhere (--place-fallback nearest): asked ({asked[0]:.3f}, "
+        f"{asked[1]:.3f}), used ({used[0]:.3f}, {used[1]:.3f}), {record.place_moved_mm:.0f} mm "
+        "apart"
+    )
+
+
+def _unreachable_detail(ep: Episode, tried: list[np.ndarray], reason: str) -> str:
+    """Why no set-down was found: at the point asked for (with the flag that would try
+    another), or at every slot the task cycle tried."""
+    where = tried[-1].round(3).tolist()
+    if ep.cycle == 0 and len(tried) == 1 and not ep.record.delivered_elsewhere:
+        hint = (
+            ""
+            if ep.options.place_fallback == "nearest"
+            else " (--place-fallback nearest would deliver to the nearest free slot)"
+        )
+        return f"no set-down posture at the place point asked for {where}: {reason}{hint}"
+    slots = ", ".join(str(t.round(3).tolist()) for t in tried)
+    return f"no set-down posture at {len(tried)} place slots ({slots}): {reason}"
+
+
+def _park(ep: Episode) -> str:
+    """Take the arm back to where it stood when the first Select/Model looked, so that the next
+    one sees the table as the first did (Select/Model's guard: the arm is parked clear of the
+    table; a hand left above the table hides blocks from the overhead camera, and its faces merge
+    with theirs). The path is planned among the blocks where they stand now. Returns what was
+    done, for the transition log."""
+    if ep.parked_arm is None:
+        return "the arm stays where it retreated to"
+    path = plan_arm_path(CollisionChecker(ep.world), ep.world.arm_qpos(), ep.parked_arm)
+    if not path.found:
+        return f"the arm stays where it retreated to (no path to its parked posture: {path.reason})"
+    execute_path(ep.world, path.path)
+    return "the arm is parked clear of the view"
 
 
 class _DroppedError(Exception):
@@ -26,8 +70,10 @@ class _DroppedError(Exception):
 def deliver(ep: Episode) -> Step:
     """Deliver: lift, carry along a harmonic path planned with the block in the hand, lower
     until the table takes the weight (wrist sensor), release along the contact normals, retreat;
-    then judge the placement physically. A later cycle's place slot the hand cannot set the
-    block down at gives way to the next free one (up to ``config.max_place_slots``)."""
+    then judge the placement physically, at the point the block was taken to. A later cycle's
+    place slot (chosen by the task cycle) the hand cannot set the block down at gives way to the
+    next free one (up to ``config.max_place_slots``); so does the point asked for, but only with
+    ``--place-fallback nearest``, and the block is then reported as delivered elsewhere."""
     world = ep.world
     name = ep.target_name
     record = ep.record
@@ -63,10 +109,11 @@ def deliver(ep: Episode) -> Step:
     )
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     tried = [np.asarray(ep.place, dtype=float)]
-    # a place the user did not ask for (a later cycle's slot, or the scene's place point) may be
-    # free for the block but not for the hand around it: take the next free slot
-    chosen = ep.cycle > 0 or (ep.options.place is None and ep.options.place_pixel is None)
-    while not plan.found and chosen and len(tried) < config.max_place_slots:
+    # a place the task cycle chose itself (a later cycle's slot) may be free for the block but
+    # not for the hand around it: take the next free slot; a place point asked for is moved only
+    # when the user lets it (--place-fallback nearest), and the move is reported
+    movable = ep.cycle > 0 or ep.options.place_fallback == "nearest"
+    while not plan.found and movable and len(tried) < config.max_place_slots:
         taken = [t + 0.001 * np.array([[1.0, 0.0], [-0.5, 0.87], [-0.5, -0.87]]) for t in tried]
         slot = free_slot(
             tried[0],
@@ -77,18 +124,19 @@ def deliver(ep: Episode) -> Step:
         )
         if slot is None:
             break
+        ep.use_place(slot)
         log(
             State.DELIVER.value,
             State.DELIVER.value,
             f"place slot {tried[-1].round(3).tolist()}: {plan.reason}; trying "
-            f"{slot.round(3).tolist()}",
+            f"{slot.round(3).tolist()}" + _elsewhere_note(record),
         )
-        ep.place = slot
-        record.place = (float(slot[0]), float(slot[1]))
         tried.append(slot)
         plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
     if not plan.found:
-        raise TaskFailedError(Failure.PLACE_UNREACHABLE, plan.reason)
+        raise TaskFailedError(
+            Failure.PLACE_UNREACHABLE, _unreachable_detail(ep, tried, plan.reason)
+        )
 
     lost: deque[bool] = deque(maxlen=config.drop_window)
 
@@ -143,12 +191,14 @@ def deliver(ep: Episode) -> Step:
         raise TaskFailedError(Failure.NOT_PLACED, "; ".join(verdict.reasons))
     record.success = True
     ep.delivered.append(name)
+    where = "free slot" if record.delivered_elsewhere else "place point"
     summary = (
-        f"{name} placed {verdict.place_error_mm:.1f} mm from the place point, "
+        f"{name} placed {verdict.place_error_mm:.1f} mm from the {where} "
+        f"({ep.place[0]:.3f}, {ep.place[1]:.3f}) ({record.place_chosen_by}), "
         f"tilt {verdict.tilt_deg:.1f} deg"
-    )
+    ) + _elsewhere_note(record)
     cycles = ep.options.cycles
     if cycles is None or len(ep.cycles) < cycles:
         ep.cycle += 1
-        return Step(State.SELECT_MODEL, summary + "; next block")
+        return Step(State.SELECT_MODEL, f"{summary}; {_park(ep)}; next block")
     return Step(State.DONE, summary)

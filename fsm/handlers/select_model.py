@@ -8,33 +8,38 @@ import numpy as np
 from controllers.finger_geometry import PerceivedPrism
 from controllers.planning_model import planning_model
 from controllers.reach import ReachTarget
-from fsm.context import Episode
-from fsm.perception import choose_block, other_footprints, perceive, place_for_cycle
+from fsm.context import CycleRecord, Episode
+from fsm.perception import choose_blocks, other_footprints, perceive, place_for_cycle
 from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim.blocks import WOOD_DENSITY
 from hand_sim.robot import STANDARD_GRAVITY
 from vision import VisionError
-from vision.errors import NotABlockError
 
 
 def select_model(ep: Episode) -> Step:
     """Select/Model: the picked block's polygon, centroid and yaw from the overhead image."""
     record = ep.new_cycle()
     world = ep.world
+    if ep.parked_arm is None:
+        ep.parked_arm = world.arm_qpos().copy()
     ep.selection = perceive(world)
     try:
-        index = choose_block(world, ep.selection, ep.options, ep.cycle, ep.delivered)
+        candidates = choose_blocks(world, ep.selection, ep.options, ep.cycle, ep.delivered)
     except LookupError:
         return Step(State.DONE, "no block left to pick")
-    except NotABlockError as e:
+    except VisionError as e:  # NotABlockError among them
         raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
-    except VisionError as e:
-        raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, str(e)) from e
-    try:
-        model = ep.selection.model(index)
-    except VisionError as e:
-        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, str(e)) from e
+    reasons = []
+    for index in candidates:
+        try:
+            model = ep.selection.model(index)
+            break
+        except VisionError as e:
+            reasons.append(str(e))
+    else:
+        raise TaskFailedError(Failure.POLYGON_NOT_MODELLED, "; ".join(reasons))
+    record.skipped_not_modelled = reasons
     name = ep.selection.names[index]
     if name is None:
         raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
@@ -59,13 +64,15 @@ def select_model(ep: Episode) -> Step:
         "true_edges": float(truth.polygon.n_edges),
     }
     # the place point must be clear of every other perceived block
-    footprints = other_footprints(world, ep.selection, index, model.world_vertices)
+    footprints, unmodelled = other_footprints(world, ep.selection, index, model.world_vertices)
+    record.obstacles_not_modelled = unmodelled
     radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
-    ep.place = place_for_cycle(
-        world, ep.options, ep.cycle, footprints, radius, ep.config.place_reach
-    )
+    choice = place_for_cycle(world, ep.options, ep.cycle, footprints, radius, ep.config.place_reach)
     ep.place_footprints, ep.place_radius = footprints, radius
-    record.place = (float(ep.place[0]), float(ep.place[1]))
+    if choice.asked is not None:
+        record.place_asked = (float(choice.asked[0]), float(choice.asked[1]))
+    record.place_chosen_by = choice.chosen_by
+    ep.use_place(choice.point)
     ep.others_before = {
         b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
     }
@@ -84,6 +91,19 @@ def select_model(ep: Episode) -> Step:
         State.COARSE_REACH,
         f"picked {name}: {model.n_edges} edges, centroid "
         f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
-        f"yaw {np.degrees(model.yaw):.0f} deg; "
-        f"place at ({ep.place[0]:.3f}, {ep.place[1]:.3f})",
+        f"yaw {np.degrees(model.yaw):.0f} deg; {place_text(record)}",
     )
+
+
+def place_text(record: CycleRecord) -> str:
+    """The cycle's place point for the transition log: where it goes, who chose it, and the point
+    asked for when it differs (``--place-fallback nearest``)."""
+    used = record.place_used
+    text = f"place at ({used[0]:.3f}, {used[1]:.3f}) ({record.place_chosen_by})"
+    if record.delivered_elsewhere and record.place_asked is not None:
+        asked = record.place_asked
+        text += (
+            f", elsewhere than the place point asked for ({asked[0]:.3f}, {asked[1]:.3f}): "
+            f"{record.place_moved_mm:.0f} mm away"
+        )
+    return text

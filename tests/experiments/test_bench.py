@@ -286,7 +286,7 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
 
 # --- real episodes --------------------------------------------------------------------------------
 @pytest.mark.e2e
-def test_a_crashed_episode_is_a_failure_with_its_recording(tmp_path: Path, monkeypatch) -> None:
+def test_a_bug_in_a_state_is_an_internal_error_with_its_recording(tmp_path, monkeypatch) -> None:
     def bug(ep):
         raise RuntimeError("a bug in Select/Model")
 
@@ -294,10 +294,27 @@ def test_a_crashed_episode_is_a_failure_with_its_recording(tmp_path: Path, monke
     result = run_job(Job(seed=2, blocks=3, controller=CONTROLLER))
     line = result.line
     assert (line["seed"], line["blocks"], line["success"]) == (2, 3, False)
-    assert line["failure"] == CRASHED
+    assert line["failure"] == "internal error"
     assert "RuntimeError: a bug in Select/Model" in line["failure_detail"]
+    assert "\n" not in line["failure_detail"] and "in bug" in line["traceback"]
     assert line["rrd"] == "rrd/seed-000002.rrd" and result.rrd is not None and len(result.rrd) > 0
     assert line["options"]["out"] is None and line["visits"][0]["state"] == "Select/Model"
+    assert line["visits"][0]["next"] == "Failed"
+
+
+def test_a_crash_outside_the_states_is_an_episode_crashed_line(monkeypatch) -> None:
+    """An exception before the machine runs a state (here: the grasp controller cannot be made)
+    is the bench's own last resort, ``episode crashed``, with the traceback."""
+    import fsm.machine
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no composer today")
+
+    monkeypatch.setattr(fsm.machine, "make_composer", broken)
+    line = run_job(Job(seed=2, blocks=3, controller=CONTROLLER)).line
+    assert (line["success"], line["failure"]) == (False, CRASHED)
+    assert "RuntimeError: no composer today" in line["failure_detail"]
+    assert "broken" in line["traceback"] and line["rrd"] is None
 
 
 @pytest.fixture(scope="module")

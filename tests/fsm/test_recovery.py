@@ -115,16 +115,26 @@ def test_clutter5_is_cleared_block_by_block(tmp_path: Path) -> None:
 
 
 @pytest.mark.e2e
-def test_a_scene_place_point_the_hand_cannot_set_down_at_gives_way_to_a_free_slot(
+def test_a_scene_place_point_the_hand_cannot_set_down_at_gives_way_to_a_free_slot_if_asked(
     tmp_path: Path,
 ) -> None:
     """Random scene 18: its place point is free for the block but a finger would land on the
-    block beside it (the set-down's descent keeps the hand 3 mm from other blocks), so the block
-    goes to the nearest free slot instead, and is judged there. A place the user asks for with
-    --place is never moved (test_fsm's bad-input tests)."""
+    block beside it (the set-down's descent keeps the hand 3 mm from other blocks). With
+    --place-fallback nearest the block goes to the nearest free slot instead, is judged there and
+    reported as delivered elsewhere (without the flag the episode fails there: test_honest)."""
     scene = episode_scene("random", 18, blocks_for_seed(18, 3, 5))
-    result = _random_episode(18, tmp_path)
+    options = EpisodeOptions(
+        scene="random",
+        seed=18,
+        blocks=blocks_for_seed(18, 3, 5),
+        controller=CONTROLLER,
+        place_fallback="nearest",
+        out=tmp_path,
+        record=False,
+    )
+    result = run_episode(options)
     _delivered_physically(result)
     (cycle,) = result.cycles
-    moved = np.linalg.norm(np.asarray(cycle["place"]) - np.asarray(scene.place))
+    assert cycle["delivered_elsewhere"] and cycle["place_asked"] == list(scene.place)
+    moved = np.linalg.norm(np.asarray(cycle["place_used"]) - np.asarray(scene.place))
     assert moved >= SLOT_SPACING - 1e-9
