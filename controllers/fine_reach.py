@@ -31,9 +31,10 @@ from hand_sim.world import World
 GRASP_DEPTH = 0.04
 MIN_CONTACT_HEIGHT = 0.02
 #: Depths (m below the block's top) a top grasp's contacts may take in the 3-D grasp model: from
-#: GRASP_DEPTH to 6 cm. The 6 cm was chosen by looking at physical results: KB's planar contacts
-#: placed at one depth on the square, pentagon, hexagon and rectangle (12 grasps each, seed 0)
-#: held 9 of 31 tested at 4 cm, 29 of 30 at 6 cm and 24 of 30 at 7 cm (docs/grasp3d_physics.md).
+#: GRASP_DEPTH to 6 cm. The 6 cm was chosen by looking at physical results: the planar
+#: controllers' contacts placed at one depth (python -m experiments.physics --objects
+#: square,pentagon,hexagon,rectangle --grasps 12 --depth D) held 29 of 101 tested at 4 cm, 97 of
+#: 100 at 6 cm and 73 of 97 at 7 cm (docs/grasp3d_physics.md).
 TOP_GRASP_DEPTHS = (GRASP_DEPTH, 0.06)
 #: Cell size (m) of the fingertip grids and their extent around the block (m).
 FIELD_CELL = 0.005
