@@ -265,7 +265,10 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
         "blocks": "3:5",
         "controller": CONTROLLER,
         "approach": "auto",
+        "grasp_model": "planar",
         "models": None,
+        "cycles": "1",
+        "place_fallback": "none",
     }
     (tmp_path / "bench.json").write_text(json.dumps(settings))
     before = (tmp_path / "results.jsonl").read_bytes()
