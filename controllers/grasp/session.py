@@ -18,6 +18,7 @@ With 0 (the default) the controller is the paper's.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,7 +84,7 @@ class SynthesisStep:
     moved: float  #: largest contact displacement of the step (rad)
 
 
-class SteppedSynthesis:
+class SteppedSynthesis(ABC):
     """What the planar and the 3-D syntheses share: one grasp controller run a step at a time
     (``theta <- theta - gain * gradient`` of the composer, the convergence test and step limit of
     the trials). A subclass sets ``composer``, ``rng``, ``gain``, ``max_steps``, ``_theta``
@@ -98,14 +99,14 @@ class SteppedSynthesis:
     _theta: NDArray[np.float64]
     _state: ControlState | ControlState3D
 
+    @abstractmethod
     def _move(self, delta: NDArray[np.float64]) -> float:
         """Add ``delta`` (1, coordinates) to the contacts, keep them where they may be; return
         the largest move."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _evaluate(self) -> ControlState | ControlState3D:
         """The controllers' state at the current contacts."""
-        raise NotImplementedError
 
     def _active(self) -> NDArray[np.bool_]:
         return np.array([not self.done])
