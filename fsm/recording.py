@@ -360,6 +360,10 @@ class EpisodeRecorder(ClosesOnExit):
         on the table top at ``table_z``, labelled with their distance when they differ."""
         self.telemetry.set_time_now()
         stream = self.recorder.stream
+        moved = None
+        if asked is not None and used is not None:
+            moved = 1000.0 * float(np.hypot(used[0] - asked[0], used[1] - asked[1]))
+        same = moved is not None and moved <= 1e-6
         for key, point, colour in (
             ("asked", asked, PLACE_ASKED_COLOUR),
             ("used", used, PLACE_USED_COLOUR),
@@ -368,14 +372,18 @@ class EpisodeRecorder(ClosesOnExit):
                 stream.log(f"{PLACE_PATH}/{key}", rr.Points3D(np.zeros((0, 3))))
                 continue
             label = f"place point {key}"
-            if key == "used" and asked is not None and used is not None:
-                moved = 1000.0 * float(np.hypot(used[0] - asked[0], used[1] - asked[1]))
-                if moved > 1e-6:
-                    label += f" ({moved:.0f} mm from the asked one)"
+            if key == "used" and moved is not None:
+                # one label where the two points coincide (two would be drawn over each other)
+                label = (
+                    "place point asked and used"
+                    if same
+                    else (f"{label} ({moved:.0f} mm from the asked one)")
+                )
             xyz = _points(f"place {key}", [[point[0], point[1], table_z]], 3, min_rows=1)
+            labels = None if key == "asked" and same else [label]
             stream.log(
                 f"{PLACE_PATH}/{key}",
-                rr.Points3D(xyz, radii=PLACE_RADIUS, colors=[colour], labels=[label]),
+                rr.Points3D(xyz, radii=PLACE_RADIUS, colors=[colour], labels=labels),
             )
 
     def _log_scene_now(self) -> None:
