@@ -22,6 +22,7 @@ MEASURES: dict[str, str] = {
     "planar_sg": "planar S_G",
     "sg3d": "3-D S_G (null grasp)",
     "worst_sg3d": "3-D S_G, worst test task",
+    "predicted_turn": "grasp compliance, worst predicted turn",
 }
 
 
@@ -44,7 +45,7 @@ def measure_rocs(results: list[dict]) -> dict[str, Roc]:
     """Each measure's ROC over the tested grasps that have measures."""
     rs = _scored(results)
     held = [r["result"] == "held" for r in rs]
-    return {k: roc([r["measures"][k] for r in rs], held) for k in MEASURES}
+    return {k: roc([r["measures"].get(k) for r in rs], held) for k in MEASURES}
 
 
 def spearman(results: list[dict]) -> dict[str, dict[str, float]]:
@@ -57,7 +58,7 @@ def spearman(results: list[dict]) -> dict[str, dict[str, float]]:
     shift = [max(r["shift"].values()) for r in rs]
     out = {}
     for k in MEASURES:
-        v = [np.inf if r["measures"][k] is None else r["measures"][k] for r in rs]
+        v = [np.inf if r["measures"].get(k) is None else r["measures"][k] for r in rs]
         v = np.where(np.isfinite(v), v, np.nanmax(np.where(np.isfinite(v), v, np.nan)) * 10)
         out[k] = {
             "turn": float(spearmanr(v, turn).statistic) if len(rs) > 2 else float("nan"),

@@ -41,6 +41,7 @@ from controllers.grip import GRIP_FORCE, close, plan_grip, squeeze
 from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from controllers.transport import LIFT_HEIGHT, lift
+from experiments.physics.compliance import grasp_compliance
 from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
 from experiments.physics.measures import grasp_measures, held_contacts
 from experiments.physics.synthesis import grasp_depths, synthesize
@@ -345,6 +346,13 @@ def test_grasp(
         points = held_contacts(world, sw.name)
         if points is not None:
             out.measures = grasp_measures(points, sw.target.polygon, sw.target.yaw, load).to_json()
+            weight = load * GRIP_FORCE
+            compliance = grasp_compliance(world, sw.name, weight, DIRECTIONS)
+            if compliance is not None:
+                out.measures["predicted_turn"] = round(compliance.worst_turn, 6)
+                out.measures["predicted_stage"] = compliance.worst_stage
+                out.measures["saturated_servos"] = compliance.saturated
+            out.measures["points"] = np.round(points, 5).tolist()
         physical_test(sw, grip, out, snapshot)
     except SimulationError as e:
         out.result, out.reason = "sim error", str(e)
