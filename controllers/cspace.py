@@ -56,7 +56,9 @@ SCAN_CHUNK = 2000
 def scan_threads() -> int:
     """Threads of a scan by default: :data:`SCAN_THREADS`, or the cores this process may use
     if fewer."""
-    return max(1, min(SCAN_THREADS, len(os.sched_getaffinity(0))))
+    affinity = getattr(os, "sched_getaffinity", None)  # Linux; elsewhere every core counts
+    cores = len(affinity(0)) if affinity is not None else os.cpu_count() or 1
+    return max(1, min(SCAN_THREADS, cores))
 
 
 @dataclass(frozen=True)
