@@ -8,18 +8,11 @@ world being simulated is never touched. In the copy, collision bits are rearrang
 pairs that matter for reaching are tested (arm-arm, arm-hand, arm/hand-environment; not the
 hand's fixed internal pairs nor blocks against the table), which makes a check ~2x faster, and
 the robot's geoms carry a margin so that contacts closer than ``clearance`` are reported.
-
-A :meth:`CollisionChecker.scan` of many configurations runs on :data:`SCAN_THREADS` threads, each
-with its own ``MjData``: MuJoCo's bindings release the GIL inside ``mj_kinematics`` and
-``mj_collision``, and every configuration is checked on its own, so the result is the same, bit
-for bit, on any number of threads.
 """
 
 from __future__ import annotations
 
 import copy
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import mujoco
@@ -47,18 +40,6 @@ IK_ANGLE_TOLERANCE = 1e-3
 IK_MAX_STEP = 0.2
 #: How much a rotation error weighs against a position error in the IK (m per rad).
 IK_ROTATION_WEIGHT = 0.2
-#: Threads of a scan: at most this many, and no more than the cores this process may use.
-SCAN_THREADS = 2
-#: Fewest configurations per thread worth a thread of their own.
-SCAN_CHUNK = 2000
-
-
-def scan_threads() -> int:
-    """Threads of a scan by default: :data:`SCAN_THREADS`, or the cores this process may use
-    if fewer."""
-    affinity = getattr(os, "sched_getaffinity", None)  # Linux; elsewhere every core counts
-    cores = len(affinity(0)) if affinity is not None else os.cpu_count() or 1
-    return max(1, min(SCAN_THREADS, cores))
 
 
 @dataclass(frozen=True)
@@ -117,7 +98,6 @@ class CollisionChecker:
     now) and counts as part of the hand (delivery: "navigate the hand/arm/object"). ``model`` is
     the model to copy instead of the world's (same state layout), e.g. a
     :func:`controllers.planning_model.planning_model` holding the perceived target.
-    ``threads`` is the number of threads of a :meth:`scan` (default :func:`scan_threads`).
     """
 
     def __init__(
@@ -128,16 +108,12 @@ class CollisionChecker:
         hand_q: ArrayLike | None = None,
         carried: str | None = None,
         model: mujoco.MjModel | None = None,
-        threads: int | None = None,
     ) -> None:
         if not world.with_robot:
             raise ReachError("the world was built with with_robot=False: nothing to plan for")
         if not 0.0 <= clearance < 0.2:
             raise ReachError(f"clearance must lie in [0, 0.2) m, got {clearance}")
         self.clearance = float(clearance)
-        self.threads = scan_threads() if threads is None else int(threads)
-        if self.threads < 1:
-            raise ReachError(f"a scan needs at least 1 thread, got {threads}")
         if model is not None and model.nq != world.model.nq:
             raise ReachError(
                 f"a planning model needs the world's {world.model.nq} qpos, got {model.nq}"
@@ -222,10 +198,9 @@ class CollisionChecker:
             raise ReachError(f"arm configuration must be 5 finite angles (rad), got {q!r}")
         self._place(q)
 
-    def _place(self, q: NDArray[np.float64], data: mujoco.MjData | None = None) -> None:
-        """Arm joints ``q`` and the kinematics of everything (the carried block follows), in
-        ``data`` (default: the checker's own)."""
-        m, d = self.model, self.data if data is None else data
+    def _place(self, q: NDArray[np.float64]) -> None:
+        """Arm joints ``q`` and the kinematics of everything (the carried block follows)."""
+        m, d = self.model, self.data
         d.qpos[self._arm_qpos] = q
         mujoco.mj_kinematics(m, d)
         if self._carried is not None:
@@ -269,41 +244,23 @@ class CollisionChecker:
         return self.data.ncon > 0
 
     def scan(self, configs: ArrayLike) -> Scan:
-        """Collision status and palm pose of every row of ``configs`` (N, 5), on up to
-        :attr:`threads` threads (one ``MjData`` each; the same result on any number)."""
+        """Collision status and palm pose of every row of ``configs`` (N, 5)."""
         q = np.asarray(configs, dtype=float)
         if q.ndim != 2 or q.shape[1] != len(robot.ARM_JOINTS):
             raise ReachError(f"configs must have shape (N, 5), got {q.shape}")
+        m, d = self.model, self.data
         n = len(q)
-        out = Scan(np.zeros(n, dtype=bool), np.empty((n, 3)), np.empty((n, 3)))
-        parts = max(1, min(self.threads, n // SCAN_CHUNK))
-        bounds = np.linspace(0, n, parts + 1).astype(int)
-        # the checker's own MjData takes the last part: it ends at the last posture, as before
-        datas = [self._twin() for _ in range(parts - 1)] + [self.data]
-        jobs = [(d, q, a, b, out) for d, a, b in zip(datas, bounds[:-1], bounds[1:], strict=True)]
-        if parts == 1:
-            self._scan_part(*jobs[0])
-        else:
-            with ThreadPoolExecutor(parts) as pool:
-                for done in [pool.submit(self._scan_part, *job) for job in jobs]:
-                    done.result()
-        return out
-
-    def _twin(self) -> mujoco.MjData:
-        """A copy of the checker's ``MjData`` (its state: hand posture, blocks, carried block)."""
-        return copy.copy(self.data)
-
-    def _scan_part(
-        self, d: mujoco.MjData, q: NDArray[np.float64], start: int, stop: int, out: Scan
-    ) -> None:
-        """Rows ``start:stop`` of :meth:`scan`, computed in ``d``."""
-        m, site = self.model, self.palm_site
-        for i in range(start, stop):
-            self._place(q[i], d)
+        hit = np.zeros(n, dtype=bool)
+        pos = np.empty((n, 3))
+        axis = np.empty((n, 3))
+        site = self.palm_site
+        for i in range(n):
+            self._place(q[i])
             mujoco.mj_collision(m, d)
-            out.collides[i] = d.ncon > 0
-            out.palm_position[i] = d.site_xpos[site]
-            out.approach_axis[i] = d.site_xmat[site, 2::3]
+            hit[i] = d.ncon > 0
+            pos[i] = d.site_xpos[site]
+            axis[i] = d.site_xmat[site, 2::3]
+        return Scan(hit, pos, axis)
 
     def palm_pose(self, q_arm: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (3,) and rotation matrix (3, 3) of the palm centre at ``q_arm``."""

@@ -21,7 +21,6 @@ from benchmarks import (
     bench_grasp,
     bench_parallel,
     bench_reach,
-    bench_scan,
     bench_sim,
     hand_reachability,
 )
@@ -224,8 +223,6 @@ BENCHMARK_CASES = [
     (bench_reach.main, ["--blocks", "99"], "argument --blocks"),
     (bench_reach.main, ["--random", "-1"], "argument --random"),
     (bench_reach.main, ["--scene", "nope"], "unknown scene 'nope'"),
-    (bench_scan.main, ["--repeats", "0"], "argument --repeats: must be an integer from 1"),
-    (bench_scan.main, ["--scene", "nope"], "unknown scene 'nope'"),
     (arm_reach.main, ["--step", "0"], "argument --step: must be a number in [0.01, 0.45]"),
     (arm_reach.main, ["--step", "nan"], "argument --step"),
     (hand_reachability.main, ["--objects", "circle"], "argument --objects: invalid choice"),

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import SCAN_CHUNK, CollisionChecker, rotation_error
+from controllers.cspace import CollisionChecker, rotation_error
 from controllers.errors import ReachError
 from controllers.reach import PRESHAPE
 from hand_sim import robot
@@ -104,21 +104,3 @@ def test_carried_block_moves_rigidly_with_the_palm(world):
         CollisionChecker(world, clearance=-0.1)
     with pytest.raises(ReachError, match="5 finite"):
         checker.collides([0.0, 0.0])
-
-
-@pytest.mark.parametrize("carried", [None, "pentagon"])
-def test_a_scan_on_two_threads_is_the_scan_on_one(world, carried):
-    """Each thread checks its share of the postures in its own MjData: the same collisions and
-    palm poses, bit for bit, and the checker's own state after the scan is the same."""
-    one = CollisionChecker(world, hand_q=PRESHAPE, carried=carried, threads=1)
-    two = CollisionChecker(world, hand_q=PRESHAPE, carried=carried, threads=2)
-    qs = random_postures(one, 2 * SCAN_CHUNK + 7, 3)
-    a, b = one.scan(qs), two.scan(qs)
-    assert 0.1 < a.collides.mean() < 0.9
-    np.testing.assert_array_equal(a.collides, b.collides)
-    np.testing.assert_array_equal(a.palm_position, b.palm_position)
-    np.testing.assert_array_equal(a.approach_axis, b.approach_axis)
-    np.testing.assert_array_equal(one.data.qpos, two.data.qpos)
-    assert two.collides(qs[0]) == a.collides[0]
-    with pytest.raises(ReachError, match="at least 1 thread"):
-        CollisionChecker(world, threads=0)
