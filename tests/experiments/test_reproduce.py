@@ -18,8 +18,7 @@ from tests.experiments.tiny_reproduce import tiny_config
 
 TINY = tiny_config((1, 2))
 
-# The tests of the two reproduce runs (``runs``) are whole experiment runs (``e2e``), and
-# ``pytest -n 2`` (``--dist loadgroup``) keeps them on one worker, so the runs are made once.
+# Tests of ``runs`` (two whole reproduce runs) are marked ``e2e``, as whole experiment runs.
 
 COMPARED = (
     "report.md",
@@ -44,7 +43,6 @@ def runs(tmp_path_factory):
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_same_seeds_same_artefacts_in_process_or_in_a_pool(runs):
     a, b, _ = runs
     for name in COMPARED:
@@ -53,7 +51,6 @@ def test_same_seeds_same_artefacts_in_process_or_in_a_pool(runs):
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_report_sets_our_numbers_beside_the_papers_with_seed_spread(runs):
     a, _, res = runs
     text = (a / "report.md").read_text()
@@ -81,7 +78,6 @@ def _section(text: str, heading: str) -> list[str]:
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_report_rows_show_the_computed_results(runs):
     """The 'ours' figures of the report are computed: in Table 2, each regular object's cell is
     the mean and sample SD over the per-seed results, each of them a whole number of the 8 test
@@ -103,7 +99,6 @@ def test_report_rows_show_the_computed_results(runs):
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_provenance_records_the_run_and_its_checks(runs):
     a, _, _ = runs
     prov = json.loads((a / "provenance.json").read_text())
@@ -114,7 +109,6 @@ def test_provenance_records_the_run_and_its_checks(runs):
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_trials_cli_uses_saved_models(runs, capsys):
     a, _, _ = runs
     for ctrl in ("ql", "pi", "pi9", "pi5"):
@@ -128,7 +122,6 @@ def test_trials_cli_without_models_says_how_to_train(tmp_path, capsys):
 
 
 @pytest.mark.e2e
-@pytest.mark.xdist_group("tiny_reproduce")
 def test_a_finished_run_is_marked_with_its_first_seed_and_model_hashes(runs):
     a, _, _ = runs
     run = json.loads((a / "results.json").read_text())["run"]
@@ -143,6 +136,7 @@ def _copy(src, dst):
     return dst
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     ("spoil", "message"),
     [
