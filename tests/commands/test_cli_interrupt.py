@@ -29,6 +29,7 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@pytest.mark.e2e  # two whole experiment runs: one finished, one interrupted
 def test_sigint_on_reproduce_leaves_no_run_that_trials_would_accept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

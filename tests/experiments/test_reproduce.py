@@ -18,6 +18,8 @@ from tests.experiments.tiny_reproduce import tiny_config
 
 TINY = tiny_config((1, 2))
 
+# Tests of ``runs`` (two whole reproduce runs) are marked ``e2e``, as whole experiment runs.
+
 COMPARED = (
     "report.md",
     "results.json",
@@ -40,6 +42,7 @@ def runs(tmp_path_factory):
     return a, b, res
 
 
+@pytest.mark.e2e
 def test_same_seeds_same_artefacts_in_process_or_in_a_pool(runs):
     a, b, _ = runs
     for name in COMPARED:
@@ -47,6 +50,7 @@ def test_same_seeds_same_artefacts_in_process_or_in_a_pool(runs):
     assert len(list(a.glob("fig*.png"))) == 9
 
 
+@pytest.mark.e2e
 def test_report_sets_our_numbers_beside_the_papers_with_seed_spread(runs):
     a, _, res = runs
     text = (a / "report.md").read_text()
@@ -73,6 +77,7 @@ def _section(text: str, heading: str) -> list[str]:
     return [ln for ln in lines if ln.startswith("| ") and not ln.startswith("| Object")]
 
 
+@pytest.mark.e2e
 def test_report_rows_show_the_computed_results(runs):
     """The 'ours' figures of the report are computed: in Table 2, each regular object's cell is
     the mean and sample SD over the per-seed results, each of them a whole number of the 8 test
@@ -93,6 +98,7 @@ def test_report_rows_show_the_computed_results(runs):
     assert f"theta(T) = {res['appendix_a']['theta_T']:.5f} rad" in text
 
 
+@pytest.mark.e2e
 def test_provenance_records_the_run_and_its_checks(runs):
     a, _, _ = runs
     prov = json.loads((a / "provenance.json").read_text())
@@ -102,6 +108,7 @@ def test_provenance_records_the_run_and_its_checks(runs):
     assert prov["checks"] == check_figures(a)
 
 
+@pytest.mark.e2e
 def test_trials_cli_uses_saved_models(runs, capsys):
     a, _, _ = runs
     for ctrl in ("ql", "pi", "pi9", "pi5"):
@@ -114,6 +121,7 @@ def test_trials_cli_without_models_says_how_to_train(tmp_path, capsys):
     assert "reproduce --out" in capsys.readouterr().err
 
 
+@pytest.mark.e2e
 def test_a_finished_run_is_marked_with_its_first_seed_and_model_hashes(runs):
     a, _, _ = runs
     run = json.loads((a / "results.json").read_text())["run"]
@@ -128,6 +136,7 @@ def _copy(src, dst):
     return dst
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     ("spoil", "message"),
     [
