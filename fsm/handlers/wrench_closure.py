@@ -13,7 +13,7 @@ from controllers.grasp.trials3d import HeightBand
 from controllers.grip import GRIP_FORCE
 from controllers.hand_reach import CONTACT_SEPARATION, MIN_PAD_SPACING, reachable_contacts
 from fsm.context import Episode
-from fsm.handlers.common import contact_points, reach_query, slides
+from fsm.handlers.common import arcs_of, contact_points, reach_query, side_arcs, slides
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
@@ -31,7 +31,14 @@ def synthesis_for(
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
     high = height - TOP_GRASP_DEPTHS[0]
-    if ep.options.grasp_model != "3d" or slides(ep) or low > high:
+    if slides(ep):
+        # a lateral hand takes only the faces beside its approach axis: each contact stays on
+        # its side's arc
+        arcs = arcs_of(side_arcs(ep), np.asarray(theta, dtype=float))
+        return GraspSynthesis(
+            ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
+        )
+    if ep.options.grasp_model != "3d" or low > high:
         return GraspSynthesis(ep.target.polygon, ep.composer, theta, ep.rng, **separation)
     com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
     return GraspSynthesis3D(

@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from controllers.finger_samples import Criteria, FingerSamples
+from controllers.grasp.composition import KnowledgeBased
+from controllers.grasp.errors import GraspError
+from controllers.grasp.objects import PAPER_OBJECTS, paper_object
+from controllers.grasp.session import GraspSynthesis, clamp_to_arcs
 from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
+from controllers.palm_candidates import lateral_arcs
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget, goal_poses
 from fsm.run import main
@@ -163,6 +168,72 @@ def test_the_lateral_goal_has_the_thumb_below(world: World) -> None:
     ((_, rot),) = goal_poses(target, (-0.6, 0.0))["lateral"]
     assert rot[2, 1] == pytest.approx(1.0)  # hand y (thumb to middle finger) points up
     assert abs(rot[2, 2]) < 1e-9  # the approach axis horizontal
+
+
+# --- the faces a lateral hand takes -------------------------------------------------------------
+@pytest.mark.parametrize("name", PAPER_OBJECTS)
+@pytest.mark.parametrize("yaw_deg", [0.0, 37.0, 144.0])
+def test_lateral_arcs_hold_the_side_faces_and_leave_the_near_and_far_ones(
+    name: str, yaw_deg: float
+) -> None:
+    """Each side's arc lies on faces whose outward normal is within the limit of the across
+    direction on that side of the approach axis (when any face is; else on the nearest one),
+    checked
+    by sampling the arc's points on the polygon; the pentagon's near faces, turned 54 deg towards
+    the palm, are left out."""
+    poly = paper_object(name)
+    yaw = np.deg2rad(yaw_deg)
+    target = ReachTarget(poly, (0.02, -0.05), yaw, 0.95)
+    base = (-0.6, 0.0)
+    arcs = lateral_arcs(target, base, np.deg2rad(45.0), 0.004)
+    axis = np.array([0.62, -0.05]) / np.linalg.norm([0.62, -0.05])
+    across = np.array([-axis[1], axis[0]])
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    best = [(np.stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)], 1) @ R.T)
+            @ (side * across) for side in (1.0, -1.0)]  # fmt: skip
+    for row, side in enumerate((1.0, -1.0)):
+        lo, hi = arcs[row]
+        span = np.mod(hi - lo, 2 * np.pi)
+        assert 0.0 < span < np.pi
+        frames = poly.locate(lo + np.linspace(0.01, 0.99, 25) * span)
+        normals = frames.normal @ R.T
+        points = frames.point @ R.T
+        limit = min(np.cos(np.deg2rad(45.0)), best[row].max()) - 1e-9
+        assert np.all(normals @ (side * across) >= limit)
+        # the arc's middle on that side of the axis (a long face may reach across it)
+        assert points[12] @ (side * across) > 0.0
+    if name == "pentagon" and yaw_deg == 0.0:
+        # the near corner points at the arm: the arcs start beyond the near faces
+        ends = poly.locate(arcs.ravel()).point
+        assert ends[:, 0].min() > -0.01
+
+
+def test_grasp_synthesis_keeps_each_contact_on_its_arc() -> None:
+    """With arcs the controller's contacts never leave them, and the grasp it converges to on
+    the pentagon's two far side faces still passes S_G; without arcs the same start leaves
+    them."""
+    poly = paper_object("pentagon")
+    target = ReachTarget(poly, (0.0, 0.0), 0.0, 0.95)
+    arcs = lateral_arcs(target, (-0.6, 0.0), np.deg2rad(45.0), 0.004)
+    theta0 = np.array([0.9, 1.7, -0.9, -1.7])
+    per_contact = arcs[[0, 0, 1, 1]]
+    pads = {"min_separation": 0.021, "separation_offset": 0.0085}
+    syn = GraspSynthesis(
+        poly, KnowledgeBased(), theta0, np.random.default_rng(0), arcs=per_contact, **pads
+    )
+    free = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0), **pads)
+    left = []
+    while not syn.done:
+        syn.step()
+        np.testing.assert_allclose(clamp_to_arcs(syn.theta, per_contact), syn.theta)
+    while not free.done:
+        free.step()
+        left.append(not np.allclose(clamp_to_arcs(free.theta, per_contact), free.theta))
+    assert any(left)
+    assert syn.converged and syn.finish().success
+    with pytest.raises(GraspError, match="one \\(lo, hi\\) interval per contact"):
+        GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0), arcs=arcs)
 
 
 @pytest.mark.parametrize("seed", [0])
