@@ -51,14 +51,20 @@ class PalmPoseParams:
     #: Side contacts stay this far (m) inside the block's extent along the approach axis, and
     #: inside the ends of the side arcs (:func:`lateral_arcs`).
     side_inset: float = 0.004
-    #: A lateral hand's pads take only faces whose outward normal is within this angle (rad) of
-    #: the horizontal across the approach axis (:func:`lateral_arcs`). The reach test allows a
-    #: pad 65 deg from its face (``hand_reach.MAX_PAD_ANGLE``), but the pinch's pads themselves
-    #: face 20-30 deg off the across direction (towards the palm or the block's far end), so a
-    #: face beyond ~45 deg is taken with the side of the fingertip. Chosen from the geometry,
-    #: not by its effect on a result: single_pentagon's near faces (54 deg, facing the palm) were
-    #: taken at 76-132 deg from the pad by mf; its far side faces (19 deg) are taken at 30-50.
-    lateral_face_angle: float = float(np.deg2rad(45.0))
+    #: A lateral hand's pads take only faces whose outward normal is turned at most
+    #: ``lateral_face_away`` (rad) away from the palm, or ``lateral_face_palmward`` towards it,
+    #: from the horizontal across the approach axis (:func:`lateral_arcs`). The pinch's fingers
+    #: curl from the palm round the block's sides, so their pads face across and back towards
+    #: the palm: a face turned away from the palm (the block narrowing beyond its widest part) is
+    #: taken with the pad, a face turned towards the palm needs a pad facing forward, which a
+    #: curled finger has not. Chosen from the pad angles the reach test measured at the
+    #: pre-shape's palm poses, seed 0 (not by the episodes' outcome): faces turned 19 deg away
+    #: (single_pentagon's far side faces) were taken with pads 30-54 deg off; faces turned 30-31
+    #: deg towards the palm (single_triangle's, single_hexagon's near faces) 60-90 deg off, and
+    #: 54 deg towards it (single_pentagon's near faces) 76-132 deg off (the limit is 65 deg,
+    #: ``hand_reach.MAX_PAD_ANGLE``).
+    lateral_face_away: float = float(np.deg2rad(45.0))
+    lateral_face_palmward: float = float(np.deg2rad(15.0))
     #: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose
     #: (the top grasp's search over :func:`top_poses` checks as many).
     pose_tries: int = 2
@@ -249,35 +255,42 @@ def _approach_frame(
 def lateral_arcs(
     target: ReachTarget,
     base_xy: tuple[float, float],
-    max_angle: float = DEFAULT_PALM_POSE.lateral_face_angle,
-    inset: float = DEFAULT_PALM_POSE.side_inset,
+    params: PalmPoseParams = DEFAULT_PALM_POSE,
 ) -> NDArray[np.float64]:
     """The stretches of the perceived block's outline a lateral hand's pads can face, one per
     side of the approach axis (row 0 left, row 1 right), as contact-coordinate intervals
     ``(lo, hi)`` (rad, counter-clockwise from lo to hi on the perceived polygon). A side's arc
-    is the chain of edges whose outward normal lies within ``max_angle`` of the horizontal
-    across the axis on that side (one chain: the polygon is convex), or the edge nearest that
-    when none does, its ends ``inset`` (m) in from the chain's end vertices.
+    is the chain of edges whose outward normal is turned from the horizontal across the axis on
+    that side at most ``params.lateral_face_away`` away from the palm and
+    ``params.lateral_face_palmward`` towards it (one chain: the polygon is convex), or, when no
+    edge is, the edges nearest that; its ends ``params.side_inset`` (m) in from the chain's end
+    vertices.
 
     Section 5.2's reachability criterion, for the hand's shape in a lateral grasp: the finger
     row is horizontal and the pads close across the approach axis, so a face turned towards the
-    palm (a pentagon's or a triangle's near faces when a corner points at the arm) or away from
-    it is pressed with the side of a fingertip. The grasp controller keeps its contacts on these
-    arcs (``GraspSynthesis(arcs=...)``)."""
-    across = _approach_frame(target, base_xy)[2]
+    palm (a pentagon's or a triangle's near faces when a corner points at the arm) or far away
+    from it is pressed with the side of a fingertip. The grasp controller keeps its contacts on
+    these arcs (``GraspSynthesis(arcs=...)``)."""
+    _, axis, across = _approach_frame(target, base_xy)
     c, s = np.cos(target.yaw), np.sin(target.yaw)
-    # the across direction in the object frame
-    across_obj = np.array([c * across[0] + s * across[1], -s * across[0] + c * across[1]])
+
+    def to_object(d: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+
+    axis_obj, across_obj = to_object(axis), to_object(across)
     poly = target.polygon
     v = poly.vertices
     normals = np.column_stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)])
     k = len(v)
+    inset = params.side_inset
     arcs = np.empty((2, 2))
     for row, side in enumerate((1.0, -1.0)):
-        facing = normals @ (side * across_obj)
-        good = facing >= np.cos(max_angle)
+        # each edge's turn from the across direction, positive away from the palm
+        turn = np.arctan2(normals @ axis_obj, normals @ (side * across_obj))
+        outside = np.maximum(turn - params.lateral_face_away, -params.lateral_face_palmward - turn)
+        good = outside <= 0.0
         if not good.any():
-            good = facing >= facing.max()
+            good = outside <= outside.min() + 1e-9
         # the chain's first edge: a good edge whose predecessor is not
         first = next(j for j in range(k) if good[j] and not good[j - 1]) if not good.all() else 0
         last = first

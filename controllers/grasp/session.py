@@ -105,6 +105,27 @@ def clamp_to_arcs(theta: ArrayLike, arcs: ArrayLike) -> NDArray[np.float64]:
     return wrap_angle(out)
 
 
+def keep_contacts(
+    polygon: Polygon,
+    theta: ArrayLike,
+    min_distance: float,
+    offset: float = 0.0,
+    arcs: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Contact coordinates ``theta`` projected where the contacts may be: pads apart
+    (:func:`separate_contacts`, when ``min_distance`` > 0), then each on its arc
+    (:func:`clamp_to_arcs`, when ``arcs`` are given), alternated :data:`ARC_PASSES` times (the
+    arc wins where both cannot hold: the reach test judges pads at different heights apart in
+    3-D)."""
+    th = np.asarray(theta, dtype=float)
+    for _ in range(ARC_PASSES if arcs is not None else 1):
+        if min_distance > 0:
+            th = separate_contacts(polygon, th, min_distance, offset)
+        if arcs is not None:
+            th = clamp_to_arcs(th, arcs)
+    return th
+
+
 class SteppedSynthesis(ABC):
     """What the planar and the 3-D syntheses share: one grasp controller run a step at a time
     (``theta <- theta - gain * gradient`` of the composer, the convergence test and step limit of
@@ -232,18 +253,10 @@ class GraspSynthesis(SteppedSynthesis):
         self._state = self._evaluate()
 
     def _keep(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``theta`` (1, n) projected where the contacts may be: pads apart
-        (``min_separation``), then each on its arc (``arcs``; the arc wins where both cannot
-        hold: the reach test judges pads at different heights apart in 3-D)."""
-        th = theta[0]
-        for _ in range(ARC_PASSES if self.arcs is not None else 1):
-            if self.min_separation > 0:
-                th = separate_contacts(
-                    self.polygon, th, self.min_separation, self.separation_offset
-                )
-            if self.arcs is not None:
-                th = clamp_to_arcs(th, self.arcs)
-        return th[None]
+        """``theta`` (1, n) projected where the contacts may be (:func:`keep_contacts`)."""
+        return keep_contacts(
+            self.polygon, theta[0], self.min_separation, self.separation_offset, self.arcs
+        )[None]
 
     def _move(self, delta: NDArray[np.float64]) -> float:
         theta = self._keep(wrap_angle(self._theta + delta))

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
-from controllers.grasp.session import separate_contacts
+from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
@@ -107,10 +107,7 @@ def side_arcs(ep: Episode) -> NDArray[np.float64]:
     """The stretches of the perceived block's outline this cycle's lateral hand can take
     (:func:`controllers.palm_candidates.lateral_arcs`; row 0 left of the approach axis, row 1
     right)."""
-    params = ep.config.palm_pose
-    return lateral_arcs(
-        ep.target, robot_base_xy(ep.world), params.lateral_face_angle, params.side_inset
-    )
+    return lateral_arcs(ep.target, robot_base_xy(ep.world), ep.config.palm_pose)
 
 
 def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -139,11 +136,14 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
 
     def pinch_contacts(pose: PalmPose) -> NDArray[np.float64]:
         tips = fingertips_at(ep.planning, pose.qpos)
-        return separate_contacts(
+        theta = side_contacts(ep.target, base, tips, params.side_inset, arcs)
+        # pads apart, each contact kept on its side's arc
+        return keep_contacts(
             ep.target.polygon,
-            side_contacts(ep.target, base, tips, params.side_inset, arcs),
+            theta,
             CONTACT_SEPARATION,
             robot.PAD_RADIUS,
+            arcs_of(arcs, theta),
         )
 
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
