@@ -262,3 +262,24 @@ def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path)
     j = cycle["judgement"]
     assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+
+
+@pytest.mark.e2e
+def test_a_lateral_grasp_of_the_pentagon_takes_its_side_faces_and_delivers_it(
+    tmp_path: Path,
+) -> None:
+    """Issue 23: the pentagon, a corner towards the arm, failed laterally (mf on a near face,
+    96 deg from its pad). Its contacts are now on the side faces beyond the near ones (whose
+    points lie at x < -0.8 cm), and the block is delivered, judged physically."""
+    out = tmp_path / "pentagon"
+    code = main(
+        ["--scene", "single_pentagon", "--approach", "lateral", "--out", str(out), "--no-record"]
+    )
+    s = json.loads((out / "summary.json").read_text())
+    assert code == 0 and s["success"], s["failure_detail"]
+    (cycle,) = s["cycles"]
+    assert cycle["approach"] == "lateral" and cycle["s_g"] <= 0.4
+    assert np.asarray(cycle["contacts"])[:, 0].min() > -0.007
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
