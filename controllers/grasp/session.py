@@ -153,10 +153,13 @@ class SteppedSynthesis(ABC):
     def _active(self) -> NDArray[np.bool_]:
         return np.array([not self.done])
 
+    #: the run was stopped at earlier contacts (:meth:`GraspSynthesis.stop_at`)
+    stopped: bool = False
+
     @property
     def done(self) -> bool:
-        """The controller converged or used up its steps."""
-        return self.converged or self.steps >= self.max_steps
+        """The controller converged, used up its steps or was stopped."""
+        return self.converged or self.stopped or self.steps >= self.max_steps
 
     @property
     def theta(self) -> NDArray[np.float64]:
@@ -273,6 +276,19 @@ class GraspSynthesis(SteppedSynthesis):
         """S_G (Eq. 13) of the current contacts on the unit-moment polygon."""
         frames = self._batch.locate(self._index, self._theta)
         return grasp_score(frames.point[0], frames.normal[0], self.task)
+
+    def score_at(self, theta: ArrayLike) -> GraspScore:
+        """S_G (Eq. 13) of contacts ``theta`` (n,) on the unit-moment polygon."""
+        th = np.asarray(theta, dtype=float).reshape(1, -1)
+        frames = self._batch.locate(self._index, th)
+        return grasp_score(frames.point[0], frames.normal[0], self.task)
+
+    def stop_at(self, theta: ArrayLike) -> None:
+        """End the run at contacts ``theta`` (earlier contacts of this run, e.g. the last a hand
+        reached): they become the current contacts and the run is done, not converged."""
+        self._theta = np.asarray(theta, dtype=float).reshape(1, -1).copy()
+        self._state = self._evaluate()
+        self.stopped = True
 
     def finish(self) -> GraspScore:
         """Tell the composer the run ended (learning composers update on it) and score it."""

@@ -128,8 +128,10 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     the surface points nearest the fingertips of the pinch pre-shape there (kept a pad spacing
     apart; :func:`controllers.palm_pose.search_poses` over
     :func:`controllers.palm_candidates.lateral_poses`); the hand pre-shapes outside those points
-    and the palm moves there along its approach axis (``skip``: the next pose). Returns what was
-    done, for the log, or None when no pose is approached without collision."""
+    and the palm moves there along its approach axis (``skip``: the next pose). The contacts, when
+    the hand reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the grasp
+    controller. Returns what was done, for the log, or None when no pose is approached without
+    collision."""
     base = robot_base_xy(ep.world)
     params = ep.config.palm_pose
     arcs = side_arcs(ep)
@@ -146,6 +148,7 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
             arcs_of(arcs, theta),
         )
 
+    ep.preshape_contacts = None
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
     poses = lateral_poses(where, params, arcs)
     found = search_poses(
@@ -160,4 +163,6 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     if not found.found:
         return None
     approach(block_site(ep), found.approach)
+    if found.reach is not None and found.reach.reachable:
+        ep.preshape_contacts = found.contacts
     return f"pinch pre-shape, {found.label} (reach load {found.load:.2f})"

@@ -26,6 +26,9 @@ def fine_reach_state(ep: Episode) -> Step:
     tips = world.fingertip_positions()
     local = tips[:, :2] - np.asarray(ep.target.position_xy)
     theta = np.arctan2(local[:, 1], local[:, 0]) - ep.target.yaw
+    if slides(ep) and ep.preshape_contacts is not None:
+        # the lateral pre-shape's contacts, which the reach test passed at this palm pose
+        theta = ep.preshape_contacts.theta.copy()
     # a lateral hand's contacts stay on the side faces it can take (its side's arc)
     arcs = arcs_of(side_arcs(ep), theta) if slides(ep) else None
     theta = keep_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS, arcs)

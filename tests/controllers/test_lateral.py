@@ -236,6 +236,26 @@ def test_grasp_synthesis_keeps_each_contact_on_its_arc() -> None:
         GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0), arcs=arcs)
 
 
+def test_a_synthesis_stopped_at_earlier_contacts_is_done_there_and_scored_there() -> None:
+    """A lateral grasp whose controller's contacts leave the hand's reach stops at the last ones
+    it reached (Wrench Closure): the run is then done, not converged, its contacts are those,
+    and its score is theirs (checked against a fresh synthesis started there)."""
+    poly = paper_object("square")
+    theta0 = np.array([0.3, 1.2, -2.8, -1.9])
+    syn = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0))
+    for _ in range(5):
+        syn.step()
+    assert not np.allclose(syn.theta, theta0)
+    syn.stop_at(theta0)
+    assert syn.done and syn.stopped and not syn.converged
+    np.testing.assert_allclose(syn.theta, theta0)
+    fresh = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0))
+    assert syn.score_at(theta0).s_g == pytest.approx(fresh.score().s_g)
+    assert syn.finish().s_g == pytest.approx(fresh.score().s_g)
+    with pytest.raises(GraspError, match="already finished"):
+        syn.step()
+
+
 @pytest.mark.parametrize("seed", [0])
 @pytest.mark.e2e
 def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path) -> None:
