@@ -11,15 +11,18 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.cspace import CollisionChecker
 from controllers.finger_samples import Criteria, FingerSamples
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.errors import GraspError
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.session import GraspSynthesis, clamp_to_arcs
 from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
+from controllers.motion import BlockSite, clear_backoff
 from controllers.palm_candidates import lateral_arcs
 from controllers.posture import solve_posture
-from controllers.reach import ReachTarget, goal_poses
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
+from fsm.layout import episode_scene
 from fsm.run import main
 from hand_sim import robot
 from hand_sim.indices import RobotIndices
@@ -254,6 +257,38 @@ def test_a_synthesis_stopped_at_earlier_contacts_is_done_there_and_scored_there(
     assert syn.finish().s_g == pytest.approx(fresh.score().s_g)
     with pytest.raises(GraspError, match="already finished"):
         syn.step()
+
+
+def test_a_lateral_hand_backs_out_only_as_far_as_it_stays_clear() -> None:
+    """Random scene 1004 (2 blocks) has a neighbour between the arm's base and the target: from
+    the lateral coarse goal, backing the palm out the full ``backoff`` along the approach axis
+    collides (it pushed the neighbour 149 mm), ``clear_backoff`` stops short of that, and every
+    step up to it is collision-free (checked independently here)."""
+    world = World.build(episode_scene("random", 1004, 2))
+    target = ReachTarget.from_world(world, "square_0")
+    checker = CollisionChecker(world, hand_q=PRESHAPE)  # the coarse reach's hand
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    goal = solve_goal(checker, "lateral", goal_poses(target, base)["lateral"], world.arm_qpos())
+    assert goal is not None
+    world.data.qpos[robot.arm_qpos_addresses(world.model)] = goal.q
+    world.data.qpos[robot.hand_qpos_addresses(world.model)] = PRESHAPE
+    mujoco.mj_forward(world.model, world.data)
+    site = BlockSite(world, world.model, target, world.block_body_id("square_0"),
+                     goal.palm_rotation[:, 2], lateral=True)  # fmt: skip
+    back = clear_backoff(site)
+    full = site.params.backoff
+    assert 0.0 <= back < full
+    palm, R = checker.palm_pose(goal.q)
+    q = goal.q
+    for d in np.arange(site.params.approach_step, full + 1e-9, site.params.approach_step):
+        ik = checker.solve_ik(palm - d * site.axis, R, q)
+        blocked = not ik.found or checker.collides(ik.q)
+        assert blocked == (d > back + 1e-9), d
+        if blocked:
+            break
+        q = ik.q
+    else:
+        pytest.fail("the full backoff is clear")
 
 
 @pytest.mark.parametrize("seed", [0])
