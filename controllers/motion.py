@@ -134,13 +134,18 @@ def move_arm_and_hand(
 
 def clear_backoff(site: BlockSite) -> float:
     """How far (m, at most ``backoff``, in ``approach_step`` steps) the palm backs out along the
-    approach axis from where the arm is, the hand held as it is, keeping every link clear of
-    the perceived world: a lateral hand backing out towards the arm's base may otherwise push
-    a neighbour standing between the base and the block (issue 23: ``--scene random --seed
-    1004 --blocks 2`` moved one 149 mm)."""
+    approach axis from where the arm is, the hand held as it is, without a link touching the
+    perceived world (``reposition_clearance``; the full ``backoff`` when the hand touches it
+    already, as a finger on the block may): a lateral hand backing out towards the arm's base
+    may otherwise push a neighbour standing between the base and the block (issue 23:
+    ``--scene random --seed 1004 --blocks 2`` moved one 149 mm)."""
     world, p = site.world, site.params
-    checker = CollisionChecker(world, model=site.planning, hand_q=world.hand_qpos())
+    checker = CollisionChecker(
+        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
+    )
     q = world.arm_qpos()
+    if checker.collides(q):  # already touching (a finger on the block): the full back-out
+        return p.backoff
     palm, R = checker.palm_pose(q)
     clear = 0.0
     for back in np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step):
