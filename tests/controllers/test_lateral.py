@@ -278,6 +278,9 @@ def test_a_lateral_hand_backs_out_only_as_far_as_it_stays_clear() -> None:
     back = clear_backoff(site)
     full = site.params.backoff
     assert 0.0 <= back < full
+    # touching counts: the motion's clearance (0)
+    checker = CollisionChecker(world, hand_q=PRESHAPE, clearance=site.params.reposition_clearance)
+    assert not checker.collides(goal.q)
     palm, R = checker.palm_pose(goal.q)
     q = goal.q
     for d in np.arange(site.params.approach_step, full + 1e-9, site.params.approach_step):
