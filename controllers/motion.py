@@ -132,10 +132,35 @@ def move_arm_and_hand(
     world.step(round(0.3 / world.model.opt.timestep))
 
 
+def clear_backoff(site: BlockSite) -> float:
+    """How far (m, at most ``backoff``, in ``approach_step`` steps) the palm backs out along the
+    approach axis from where the arm is, the hand held as it is, without a link touching the
+    perceived world (``reposition_clearance``; the full ``backoff`` when the hand touches it
+    already, as a finger on the block may): a lateral hand backing out towards the arm's base
+    may otherwise push a neighbour standing between the base and the block (issue 23:
+    ``--scene random --seed 1004 --blocks 2`` moved one 149 mm)."""
+    world, p = site.world, site.params
+    checker = CollisionChecker(
+        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
+    )
+    q = world.arm_qpos()
+    if checker.collides(q):  # already touching (a finger on the block): the full back-out
+        return p.backoff
+    palm, R = checker.palm_pose(q)
+    clear = 0.0
+    for back in np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step):
+        ik = checker.solve_ik(palm - back * site.axis, R, q)
+        if not ik.found or checker.collides(ik.q):
+            break
+        clear, q = float(back), ik.q
+    return clear
+
+
 def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64]) -> None:
     """Take the arm and hand to a new posture near the block without sweeping a finger through
-    it: retract the fingers, back the palm out along the approach by ``backoff``, move the arm
-    to the new posture backed out likewise (on a harmonic path), shape the hand there, and
+    it: retract the fingers, back the palm out along the approach by ``backoff`` (a lateral
+    hand only as far as it stays clear, :func:`clear_backoff`), move the arm to the new
+    posture backed out likewise (on a harmonic path), shape the hand there, and
     approach in a straight line."""
     world, p = site.world, site.params
     checker = CollisionChecker(world, model=site.planning)
@@ -144,9 +169,10 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     # arm's radius for a lateral one), whatever tilt Posture Control gave the palm: the fingers
     # then slide along the block's faces, not into them
     axis = site.axis
-    move_palm(world, checker, -p.backoff * axis, p.backoff_time)
+    back = clear_backoff(site) if site.lateral else p.backoff
+    move_palm(world, checker, -back * axis, p.backoff_time)
     p_new, R_new = checker.palm_pose(arm_q)
-    raised = checker.solve_ik(p_new - p.backoff * axis, R_new, arm_q)
+    raised = checker.solve_ik(p_new - back * axis, R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
     # the arm moves on a collision-free harmonic path (the hand keeps its retracted shape)
@@ -159,7 +185,7 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     else:  # e.g. the backed-out hand already grazes a neighbour: straight there, in joint space
         move_arm_and_hand(world, raised.q, world.hand_targets(), p.arm_move_time)
     move_hand(world, hand_q, p.preshape_time)  # then opens, clear of the block
-    move_palm(world, checker, p.backoff * axis, p.backoff_time)
+    move_palm(world, checker, back * axis, p.backoff_time)
     if not site.lateral:
         return
     # lateral: the arm lags its targets and its servos sag under the hand's weight, which moves

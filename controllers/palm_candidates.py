@@ -7,6 +7,7 @@ returns configurations to start from; :mod:`controllers.palm_pose` searches them
 - :func:`top_poses`: palm poses above the block, turned about it and shifted (a top grasp);
 - :func:`roll_seeds`: the present configuration with the wrist rolled in steps (a top grasp's
   first search, the arm's own IK from each);
+- :func:`lateral_arcs`: the stretches of the outline a lateral hand's pads can face;
 - :func:`side_contacts`: the side-face contacts a lateral pinch closes on.
 """
 
@@ -21,6 +22,7 @@ from numpy.typing import NDArray
 from controllers.cspace import CollisionChecker
 from controllers.reach import LATERAL_DEPTH, ReachTarget
 from hand_sim import robot
+from hand_sim.geometry import place_polygon
 from hand_sim.world import World
 
 
@@ -46,8 +48,23 @@ class PalmPoseParams:
     lateral_gaps: tuple[float, ...] = (0.03, 0.035, 0.04)
     lateral_rolls: tuple[float, ...] = tuple(np.deg2rad([0.0, 10.0, -10.0]))
     lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
-    #: Side contacts stay this far (m) inside the block's extent along the approach axis.
+    #: Side contacts stay this far (m) inside the block's extent along the approach axis, and
+    #: inside the ends of the side arcs (:func:`lateral_arcs`).
     side_inset: float = 0.004
+    #: A lateral hand's pads take only faces whose outward normal is turned at most
+    #: ``lateral_face_away`` (rad) away from the palm, or ``lateral_face_palmward`` towards it,
+    #: from the horizontal across the approach axis (:func:`lateral_arcs`). The pinch's fingers
+    #: curl from the palm round the block's sides, so their pads face across and back towards
+    #: the palm: a face turned away from the palm (the block narrowing beyond its widest part) is
+    #: taken with the pad, a face turned towards the palm needs a pad facing forward, which a
+    #: curled finger has not. Chosen from the pad angles the reach test measured at the
+    #: pre-shape's palm poses, seed 0 (not by the episodes' outcome): faces turned 19 deg away
+    #: (single_pentagon's far side faces) were taken with pads 30-54 deg off; faces turned 30-31
+    #: deg towards the palm (single_triangle's, single_hexagon's near faces) 60-90 deg off, and
+    #: 54 deg towards it (single_pentagon's near faces) 76-132 deg off (the limit is 65 deg,
+    #: ``hand_reach.MAX_PAD_ANGLE``).
+    lateral_face_away: float = float(np.deg2rad(45.0))
+    lateral_face_palmward: float = float(np.deg2rad(15.0))
     #: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose
     #: (the top grasp's search over :func:`top_poses` checks as many).
     pose_tries: int = 2
@@ -116,12 +133,21 @@ def turn_about_vertical(angle: float) -> NDArray[np.float64]:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def lateral_poses(where: PoseSetting, params: PalmPoseParams = DEFAULT_PALM_POSE) -> list[PalmPose]:
+def lateral_poses(
+    where: PoseSetting,
+    params: PalmPoseParams = DEFAULT_PALM_POSE,
+    arcs: NDArray[np.float64] | None = None,
+) -> list[PalmPose]:
     """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
     has five joints), hand y up as the coarse reach put it (``coarse_rotation``, its goal palm
     rotation), turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the
     block's nearest point along the axis, at the coarse reach's height, ``lateral_shifts``
-    aside; in order of the gap. The hand takes the pinch pre-shape."""
+    aside; in order of the gap. The hand takes the pinch pre-shape.
+
+    With ``arcs`` (:func:`lateral_arcs`) the gaps are counted from where the side faces the
+    fingers can take begin (less ``side_inset``), when that lies beyond the nearest point: a
+    block with a corner towards the arm (a pentagon's, 2.2 cm before its side faces) otherwise
+    leaves its side faces beyond the fingers' reach."""
     world, target, coarse_rotation = where.world, where.target, where.coarse_rotation
     hand_adr = robot.hand_qpos_addresses(world.model)
     arm_adr, checker, q_arm = where.arm_start()
@@ -131,6 +157,11 @@ def lateral_poses(where: PoseSetting, params: PalmPoseParams = DEFAULT_PALM_POSE
     axis /= np.linalg.norm(axis)
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
     near = float(((target.footprint() - centre[:2]) @ axis[:2]).min())
+    if arcs is not None:
+        ends = place_polygon(
+            target.polygon.locate(np.ravel(arcs)).point, target.position_xy, target.yaw
+        )
+        near = max(near, float(((ends - centre[:2]) @ axis[:2]).min()) - params.side_inset)
     poses = []
     for gap in params.lateral_gaps:
         for roll in params.lateral_rolls:
@@ -210,11 +241,81 @@ def roll_seeds(
     return seeds
 
 
+def _approach_frame(
+    target: ReachTarget, base_xy: tuple[float, float]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The block's centre (world xy), the horizontal approach axis (from the arm's base
+    through the centre) and the direction across it to its left, unit vectors."""
+    centre = np.asarray(target.position_xy, dtype=float)
+    axis = centre - np.asarray(base_xy, dtype=float)
+    axis /= np.linalg.norm(axis)
+    return centre, axis, np.array([-axis[1], axis[0]])
+
+
+def lateral_arcs(
+    target: ReachTarget,
+    base_xy: tuple[float, float],
+    params: PalmPoseParams = DEFAULT_PALM_POSE,
+) -> NDArray[np.float64]:
+    """The stretches of the perceived block's outline a lateral hand's pads can face, one per
+    side of the approach axis (row 0 left, row 1 right), as contact-coordinate intervals
+    ``(lo, hi)`` (rad, counter-clockwise from lo to hi on the perceived polygon). A side's arc
+    is the chain of edges whose outward normal is turned from the horizontal across the axis on
+    that side at most ``params.lateral_face_away`` away from the palm and
+    ``params.lateral_face_palmward`` towards it (one chain: the polygon is convex), or, when no
+    edge is, the edges nearest that; its ends ``params.side_inset`` (m) in from the chain's end
+    vertices.
+
+    Section 5.2's reachability criterion, for the hand's shape in a lateral grasp: the finger
+    row is horizontal and the pads close across the approach axis, so a face turned towards the
+    palm (a pentagon's or a triangle's near faces when a corner points at the arm) or far away
+    from it is pressed with the side of a fingertip. The grasp controller keeps its contacts on
+    these arcs (``GraspSynthesis(arcs=...)``)."""
+    _, axis, across = _approach_frame(target, base_xy)
+    c, s = np.cos(target.yaw), np.sin(target.yaw)
+
+    def to_object(d: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+
+    axis_obj, across_obj = to_object(axis), to_object(across)
+    poly = target.polygon
+    v = poly.vertices
+    normals = np.column_stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)])
+    k = len(v)
+    inset = params.side_inset
+    arcs = np.empty((2, 2))
+    for row, side in enumerate((1.0, -1.0)):
+        # each edge's turn from the across direction, positive away from the palm
+        turn = np.arctan2(normals @ axis_obj, normals @ (side * across_obj))
+        outside = np.maximum(turn - params.lateral_face_away, -params.lateral_face_palmward - turn)
+        good = outside <= 0.0
+        if not good.any():
+            good = outside <= outside.min() + 1e-9
+        # the chain's first edge: a good edge whose predecessor is not
+        first = next(j for j in range(k) if good[j] and not good[j - 1]) if not good.all() else 0
+        last = first
+        while good[(last + 1) % k] and (last + 1) % k != first:
+            last = (last + 1) % k
+        start, end = v[first], v[(last + 1) % k]
+        e_start = v[(first + 1) % k] - start
+        e_end = end - v[last]
+        length = sum(
+            float(np.linalg.norm(v[(j + 1) % k] - v[j]))
+            for j in (np.arange(first, first + ((last - first) % k) + 1) % k)
+        )
+        step = min(inset, 0.25 * length)
+        start = start + step * e_start / np.linalg.norm(e_start)
+        end = end - step * e_end / np.linalg.norm(e_end)
+        arcs[row] = poly.theta_of(start), poly.theta_of(end)
+    return arcs
+
+
 def side_contacts(
     target: ReachTarget,
     base_xy: tuple[float, float],
     tips: NDArray[np.float64],
     inset: float = DEFAULT_PALM_POSE.side_inset,
+    arcs: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Contact coordinates (polar angles on the perceived polygon) where lines from the
     approach axis (from the arm's base at ``base_xy`` through the block's centre) across it,
@@ -222,19 +323,26 @@ def side_contacts(
     side: the side faces a lateral pinch closes on. (The nearest surface point of a fingertip in
     front of the block's near corner is on the near face, where the palm pushes against
     nothing.) A fingertip before or beyond the block along the axis takes the block's first or
-    last ``inset`` (m)."""
-    centre = np.asarray(target.position_xy)
-    axis = centre - np.asarray(base_xy)
-    axis /= np.linalg.norm(axis)
-    across = np.array([-axis[1], axis[0]])
+    last ``inset`` (m); with ``arcs`` (:func:`lateral_arcs`), the first or last point of its
+    side's arc."""
+    centre, axis, across = _approach_frame(target, base_xy)
     foot = target.footprint()
     depth = (foot - centre) @ axis
-    lo, hi = depth.min() + inset, depth.max() - inset
+    extent = {1.0: (depth.min() + inset, depth.max() - inset)}
+    extent[-1.0] = extent[1.0]
+    if arcs is not None:
+        for row, side in enumerate((1.0, -1.0)):
+            ends = place_polygon(
+                target.polygon.locate(arcs[row]).point, target.position_xy, target.yaw
+            )
+            d_ends = (ends - centre) @ axis
+            extent[side] = (float(d_ends.min()), float(d_ends.max()))
     edges = np.roll(foot, -1, axis=0) - foot
     theta = np.empty(len(tips))
     for f, tip in enumerate(tips[:, :2]):
-        d = float(np.clip((tip - centre) @ axis, lo, hi))
         side = 1.0 if (tip - centre) @ across >= 0.0 else -1.0
+        lo, hi = extent[side]
+        d = float(np.clip((tip - centre) @ axis, lo, hi))
         origin, ray = centre + d * axis, side * across
         # the ray leaves the convex outline through exactly one edge
         best = np.inf

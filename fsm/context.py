@@ -146,6 +146,12 @@ class Episode:
     #: (the world's qpos, the coarse reach's palm rotation, the target and planning model): a
     #: search repeated before anything has moved takes them again
     top_poses: tuple[tuple[Any, ...], list[Any]] | None = None
+    #: a lateral grasp's last contacts the hand reached in this synthesis: (theta, contacts,
+    #: reach, step), or None
+    last_reachable: tuple[Any, ...] | None = None
+    #: the lateral pre-shape's contacts (a FingerContacts the reach test passed at its palm
+    #: pose): Fine Reach's targets and the grasp controller's start; None without one
+    preshape_contacts: FingerContacts | None = None
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
     @property

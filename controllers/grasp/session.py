@@ -14,6 +14,11 @@ with ``min_separation`` > 0 every step is followed by a projection that keeps th
 (``separation_offset`` outside the contacts) that far apart, pushing close contacts apart along
 the outline (:func:`separate_contacts`): a projected gradient descent on the same objective.
 With 0 (the default) the controller is the paper's.
+
+A second one, for a hand that cannot take every face: ``arcs``, one counter-clockwise interval of
+contact coordinates per contact, to which each step's contacts are projected (a lateral hand's
+pads take only the faces beside its approach axis, ``controllers.palm_candidates.lateral_arcs``).
+Without it every contact may go anywhere on the outline, as in the paper.
 """
 
 from __future__ import annotations
@@ -39,6 +44,8 @@ from controllers.grasp.trials import (
 
 #: Passes of :func:`separate_contacts` at most.
 SEPARATION_PASSES = 30
+#: Alternations of the pad separation and the arc projection (``GraspSynthesis(arcs=...)``).
+ARC_PASSES = 3
 
 
 def separate_contacts(
@@ -84,6 +91,41 @@ class SynthesisStep:
     moved: float  #: largest contact displacement of the step (rad)
 
 
+def clamp_to_arcs(theta: ArrayLike, arcs: ArrayLike) -> NDArray[np.float64]:
+    """Each contact coordinate ``theta[i]`` (rad) moved to the nearer end of its
+    counter-clockwise interval ``arcs[i] = (lo, hi)`` when outside it."""
+    th = np.asarray(theta, dtype=float)
+    a = np.asarray(arcs, dtype=float).reshape(-1, 2)
+    two_pi = 2.0 * np.pi
+    span = np.mod(a[:, 1] - a[:, 0], two_pi)
+    rel = np.mod(th - a[:, 0], two_pi)
+    outside = rel > span
+    nearer_hi = rel - span < two_pi - rel
+    out = np.where(outside, np.where(nearer_hi, a[:, 1], a[:, 0]), th)
+    return wrap_angle(out)
+
+
+def keep_contacts(
+    polygon: Polygon,
+    theta: ArrayLike,
+    min_distance: float,
+    offset: float = 0.0,
+    arcs: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Contact coordinates ``theta`` projected where the contacts may be: pads apart
+    (:func:`separate_contacts`, when ``min_distance`` > 0), then each on its arc
+    (:func:`clamp_to_arcs`, when ``arcs`` are given), alternated :data:`ARC_PASSES` times (the
+    arc wins where both cannot hold: the reach test judges pads at different heights apart in
+    3-D)."""
+    th = np.asarray(theta, dtype=float)
+    for _ in range(ARC_PASSES if arcs is not None else 1):
+        if min_distance > 0:
+            th = separate_contacts(polygon, th, min_distance, offset)
+        if arcs is not None:
+            th = clamp_to_arcs(th, arcs)
+    return th
+
+
 class SteppedSynthesis(ABC):
     """What the planar and the 3-D syntheses share: one grasp controller run a step at a time
     (``theta <- theta - gain * gradient`` of the composer, the convergence test and step limit of
@@ -111,10 +153,13 @@ class SteppedSynthesis(ABC):
     def _active(self) -> NDArray[np.bool_]:
         return np.array([not self.done])
 
+    #: the run was stopped at earlier contacts (:meth:`GraspSynthesis.stop_at`)
+    stopped: bool = False
+
     @property
     def done(self) -> bool:
-        """The controller converged or used up its steps."""
-        return self.converged or self.steps >= self.max_steps
+        """The controller converged, used up its steps or was stopped."""
+        return self.converged or self.stopped or self.steps >= self.max_steps
 
     @property
     def theta(self) -> NDArray[np.float64]:
@@ -177,8 +222,14 @@ class GraspSynthesis(SteppedSynthesis):
         task: ArrayLike | None = None,
         min_separation: float = 0.0,
         separation_offset: float = 0.0,
+        arcs: ArrayLike | None = None,
     ) -> None:
         theta = np.asarray(theta_initial, dtype=float).reshape(1, -1)
+        if arcs is not None and np.shape(arcs) != (theta.shape[1], 2):
+            raise GraspError(
+                f"arcs must be one (lo, hi) interval per contact, shape ({theta.shape[1]}, 2); "
+                f"got shape {np.shape(arcs)}"
+            )
         if theta.shape[1] < 2 or not np.all(np.isfinite(theta)):
             raise GraspError(
                 f"need at least 2 finite initial contact angles, got {theta_initial!r}"
@@ -195,24 +246,23 @@ class GraspSynthesis(SteppedSynthesis):
         self.task = task
         self.min_separation = float(min_separation)
         self.separation_offset = float(separation_offset)
+        self.arcs = None if arcs is None else np.asarray(arcs, dtype=float).copy()
         self._batch = PolygonBatch.of([polygon])
         self._index = np.zeros(1, dtype=np.int64)
-        self._theta = wrap_angle(theta)
-        if self.min_separation > 0:
-            self._theta = self._separate(self._theta)
+        self._theta = self._keep(wrap_angle(theta))
         self.steps = 0
         self.converged = False
         self.composer.begin(1, rng)
         self._state = self._evaluate()
 
-    def _separate(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        sep = separate_contacts(self.polygon, theta[0], self.min_separation, self.separation_offset)
-        return sep[None]
+    def _keep(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``theta`` (1, n) projected where the contacts may be (:func:`keep_contacts`)."""
+        return keep_contacts(
+            self.polygon, theta[0], self.min_separation, self.separation_offset, self.arcs
+        )[None]
 
     def _move(self, delta: NDArray[np.float64]) -> float:
-        theta = wrap_angle(self._theta + delta)
-        if self.min_separation > 0:
-            theta = self._separate(theta)
+        theta = self._keep(wrap_angle(self._theta + delta))
         moved = float(np.abs(wrap_angle(theta - self._theta)).max())
         self._theta = theta
         return moved
@@ -226,6 +276,19 @@ class GraspSynthesis(SteppedSynthesis):
         """S_G (Eq. 13) of the current contacts on the unit-moment polygon."""
         frames = self._batch.locate(self._index, self._theta)
         return grasp_score(frames.point[0], frames.normal[0], self.task)
+
+    def score_at(self, theta: ArrayLike) -> GraspScore:
+        """S_G (Eq. 13) of contacts ``theta`` (n,) on the unit-moment polygon."""
+        th = np.asarray(theta, dtype=float).reshape(1, -1)
+        frames = self._batch.locate(self._index, th)
+        return grasp_score(frames.point[0], frames.normal[0], self.task)
+
+    def stop_at(self, theta: ArrayLike) -> None:
+        """End the run at contacts ``theta`` (earlier contacts of this run, e.g. the last a hand
+        reached): they become the current contacts and the run is done, not converged."""
+        self._theta = np.asarray(theta, dtype=float).reshape(1, -1).copy()
+        self._state = self._evaluate()
+        self.stopped = True
 
     def finish(self) -> GraspScore:
         """Tell the composer the run ended (learning composers update on it) and score it."""

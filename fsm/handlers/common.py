@@ -10,13 +10,14 @@ from numpy.typing import NDArray
 
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
-from controllers.grasp.session import separate_contacts
+from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
     PalmPose,
     PoseSetting,
+    lateral_arcs,
     lateral_poses,
     robot_base_xy,
     side_contacts,
@@ -102,27 +103,54 @@ def contact_points(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float6
     return np.column_stack([xy, np.full(len(xy), ep.target.top_z - 0.03) if z is None else z])
 
 
+def side_arcs(ep: Episode) -> NDArray[np.float64]:
+    """The stretches of the perceived block's outline this cycle's lateral hand can take
+    (:func:`controllers.palm_candidates.lateral_arcs`; row 0 left of the approach axis, row 1
+    right)."""
+    return lateral_arcs(ep.target, robot_base_xy(ep.world), ep.config.palm_pose)
+
+
+def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each contact's arc (n, 2): the one of ``arcs`` (:func:`side_arcs`) it lies on or is
+    nearest to (by contact coordinate)."""
+    two_pi = 2.0 * np.pi
+
+    def distance(t: float, arc: NDArray[np.float64]) -> float:
+        span = float(np.mod(arc[1] - arc[0], two_pi))
+        rel = float(np.mod(t - arc[0], two_pi))
+        return 0.0 if rel <= span else min(rel - span, two_pi - rel)
+
+    return np.array([min(arcs, key=lambda arc: distance(float(t), arc)) for t in theta])
+
+
 def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
     the surface points nearest the fingertips of the pinch pre-shape there (kept a pad spacing
     apart; :func:`controllers.palm_pose.search_poses` over
     :func:`controllers.palm_candidates.lateral_poses`); the hand pre-shapes outside those points
-    and the palm moves there along its approach axis (``skip``: the next pose). Returns what was
-    done, for the log, or None when no pose is approached without collision."""
+    and the palm moves there along its approach axis (``skip``: the next pose). The contacts, when
+    the hand reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the grasp
+    controller. Returns what was done, for the log, or None when no pose is approached without
+    collision."""
     base = robot_base_xy(ep.world)
     params = ep.config.palm_pose
+    arcs = side_arcs(ep)
 
     def pinch_contacts(pose: PalmPose) -> NDArray[np.float64]:
         tips = fingertips_at(ep.planning, pose.qpos)
-        return separate_contacts(
+        theta = side_contacts(ep.target, base, tips, params.side_inset, arcs)
+        # pads apart, each contact kept on its side's arc
+        return keep_contacts(
             ep.target.polygon,
-            side_contacts(ep.target, base, tips, params.side_inset),
+            theta,
             CONTACT_SEPARATION,
             robot.PAD_RADIUS,
+            arcs_of(arcs, theta),
         )
 
+    ep.preshape_contacts = None
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
-    poses = lateral_poses(where, params)
+    poses = lateral_poses(where, params, arcs)
     found = search_poses(
         reach_query(ep, sampled=True),
         poses,
@@ -135,4 +163,6 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     if not found.found:
         return None
     approach(block_site(ep), found.approach)
+    if found.reach is not None and found.reach.reachable:
+        ep.preshape_contacts = found.contacts
     return f"pinch pre-shape, {found.label} (reach load {found.load:.2f})"

@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.fine_reach import GRASP_DEPTH, SurfaceTargets, contact_targets, fine_reach
-from controllers.grasp.session import separate_contacts
+from controllers.grasp.session import keep_contacts
 from controllers.hand_reach import CONTACT_SEPARATION
 from controllers.planning_model import PERCEIVED_GEOM
 from fsm.context import Episode
+from fsm.handlers.common import arcs_of, side_arcs, slides
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
 
@@ -25,7 +26,12 @@ def fine_reach_state(ep: Episode) -> Step:
     tips = world.fingertip_positions()
     local = tips[:, :2] - np.asarray(ep.target.position_xy)
     theta = np.arctan2(local[:, 1], local[:, 0]) - ep.target.yaw
-    theta = separate_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS)
+    if slides(ep) and ep.preshape_contacts is not None:
+        # the lateral pre-shape's contacts, which the reach test passed at this palm pose
+        theta = ep.preshape_contacts.theta.copy()
+    # a lateral hand's contacts stay on the side faces it can take (its side's arc)
+    arcs = arcs_of(side_arcs(ep), theta) if slides(ep) else None
+    theta = keep_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS, arcs)
     spread = contact_targets(ep.target, theta)
     z = np.clip(tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH)
     targets = SurfaceTargets(

@@ -17,7 +17,7 @@ from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, searc
 from controllers.planning_model import PERCEIVED_GEOM
 from controllers.posture import apply_posture, solve_posture
 from fsm.context import Episode
-from fsm.handlers.common import block_site, plan_approach, reach_query, slides
+from fsm.handlers.common import block_site, plan_approach, reach_query, side_arcs, slides
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, State, Step
 
@@ -91,7 +91,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     rotation = ep.coarse.goal.palm_rotation
     where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
     if slides(ep):
-        return _posture_among(ep, lateral_poses(where, params))
+        return _posture_among(ep, lateral_poses(where, params, side_arcs(ep)))
     query = reach_query(ep)
     theta = ep.synthesis.theta
 

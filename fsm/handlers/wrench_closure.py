@@ -13,7 +13,7 @@ from controllers.grasp.trials3d import HeightBand
 from controllers.grip import GRIP_FORCE
 from controllers.hand_reach import CONTACT_SEPARATION, MIN_PAD_SPACING, reachable_contacts
 from fsm.context import Episode
-from fsm.handlers.common import contact_points, reach_query, slides
+from fsm.handlers.common import arcs_of, contact_points, reach_query, side_arcs, slides
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
@@ -31,7 +31,14 @@ def synthesis_for(
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
     high = height - TOP_GRASP_DEPTHS[0]
-    if ep.options.grasp_model != "3d" or slides(ep) or low > high:
+    if slides(ep):
+        # a lateral hand takes only the faces beside its approach axis: each contact stays on
+        # its side's arc
+        arcs = arcs_of(side_arcs(ep), np.asarray(theta, dtype=float))
+        return GraspSynthesis(
+            ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
+        )
+    if ep.options.grasp_model != "3d" or low > high:
         return GraspSynthesis(ep.target.polygon, ep.composer, theta, ep.rng, **separation)
     com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
     return GraspSynthesis3D(
@@ -58,9 +65,16 @@ def wrench_closure(ep: Episode) -> Step:
     record = ep.record
     if ep.synthesis is None:
         tips = world.fingertip_positions()
-        start = project_to_surface(ep.target, tips, table_z=table_z)
-        ep.synthesis = synthesis_for(ep, start.theta, tips[:, 2])
+        start = project_to_surface(ep.target, tips, table_z=table_z).theta
+        if slides(ep) and ep.preshape_contacts is not None:
+            # a lateral grasp starts from the pre-shape's contacts, which the hand reaches
+            start = ep.preshape_contacts.theta.copy()
+        ep.synthesis = synthesis_for(ep, start, tips[:, 2])
+        ep.last_reachable = None
+        if slides(ep):
+            _remember_if_reachable(ep)
     syn = ep.synthesis
+    stopped = ""
     while True:
         if not syn.done:
             step = syn.step()
@@ -95,7 +109,18 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
             raise TaskFailedError(Failure.CONTACT_UNREACHABLE, reach.reason)
         ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
+        if reach.reachable and slides(ep):
+            ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
+        if not reach.reachable and _last_reachable_grasp(ep):
+            theta, ep.contacts, ep.reach, at = ep.last_reachable
+            stopped = (
+                f"; stopped at step {at}'s contacts, the last the hand reached (at step "
+                f"{syn.steps}: {reach.reason})"
+            )
+            syn.stop_at(theta)
+            break
         if not reach.reachable:
+            ep.last_reachable = None  # Posture Control may move the arm
             record.reach_reasons.append(reach.reason)
             record.posture_retries += 1
             ep.posture_mode = "contacts"
@@ -118,7 +143,7 @@ def wrench_closure(ep: Episode) -> Step:
     record.s_g = float(score.s_g) if score.feasible else None
     record.contacts = ep.contacts.points.round(5).tolist()
     record.contact_theta = ep.contacts.theta.round(5).tolist()
-    if not syn.converged:
+    if not syn.converged and not syn.stopped:
         raise TaskFailedError(
             Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
         )
@@ -127,6 +152,40 @@ def wrench_closure(ep: Episode) -> Step:
         raise TaskFailedError(Failure.GRASP_NOT_CONVERGED, f"converged to a weak grasp: {what}")
     return Step(
         State.GRASP_OBJECT,
-        f"converged in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
-        f"(pads {np.degrees(ep.reach.pad_angle).round(0).tolist()} deg off their faces)",
+        ("converged" if syn.converged else "stopped")
+        + f" in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
+        f"(pads {np.degrees(ep.reach.pad_angle).round(0).tolist()} deg off their faces)" + stopped,
     )
+
+
+def _remember_if_reachable(ep: Episode) -> None:
+    """A lateral grasp's starting contacts, kept as the last reachable ones when the hand
+    reaches them (``ep.last_reachable``)."""
+    syn = ep.synthesis
+    query = reach_query(ep)
+    contacts, reach = reachable_contacts(
+        ep.world,
+        query.prism,
+        query.target,
+        syn.theta,
+        model=query.planning,
+        check_spacing=False,
+        slide=query.slide,
+        samples=query.samples,
+        squeeze=query.squeeze,
+    )
+    if reach.reachable:
+        ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
+
+
+def _last_reachable_grasp(ep: Episode) -> bool:
+    """Whether a lateral grasp whose controller's contacts have left the hand's reach may stop
+    at the last contacts the hand reached: they pass S_G (Eq. 13) and their pads fit. A lateral
+    hand reaches only a few centimetres of each side face (the 5-joint arm cannot turn it), so
+    a grasp the controller would still improve is taken where the hand can make it, rather
+    than lost to Posture Control's search."""
+    if ep.last_reachable is None or not slides(ep):
+        return False
+    theta, _, reach, _ = ep.last_reachable
+    score = ep.synthesis.score_at(theta)
+    return bool(score.success) and reach.min_spacing >= MIN_PAD_SPACING

@@ -11,10 +11,18 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.cspace import CollisionChecker
 from controllers.finger_samples import Criteria, FingerSamples
+from controllers.grasp.composition import KnowledgeBased
+from controllers.grasp.errors import GraspError
+from controllers.grasp.objects import PAPER_OBJECTS, paper_object
+from controllers.grasp.session import GraspSynthesis, clamp_to_arcs
 from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
+from controllers.motion import BlockSite, clear_backoff
+from controllers.palm_candidates import lateral_arcs
 from controllers.posture import solve_posture
-from controllers.reach import ReachTarget, goal_poses
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
+from fsm.layout import episode_scene
 from fsm.run import main
 from hand_sim import robot
 from hand_sim.indices import RobotIndices
@@ -165,6 +173,127 @@ def test_the_lateral_goal_has_the_thumb_below(world: World) -> None:
     assert abs(rot[2, 2]) < 1e-9  # the approach axis horizontal
 
 
+# --- the faces a lateral hand takes -------------------------------------------------------------
+@pytest.mark.parametrize("name", PAPER_OBJECTS)
+@pytest.mark.parametrize("yaw_deg", [0.0, 37.0, 144.0])
+def test_lateral_arcs_hold_the_side_faces_and_leave_the_near_and_far_ones(
+    name: str, yaw_deg: float
+) -> None:
+    """Each side's arc lies on faces turned from the across direction on that side at most 45
+    deg away from the palm and 15 deg towards it (when any face is; else on the faces nearest
+    that), checked by sampling the arc's points on the polygon; the pentagon's near faces,
+    turned 54 deg towards the palm, are left out."""
+    poly = paper_object(name)
+    yaw = np.deg2rad(yaw_deg)
+    target = ReachTarget(poly, (0.02, -0.05), yaw, 0.95)
+    arcs = lateral_arcs(target, (-0.6, 0.0))
+    axis = np.array([0.62, -0.05]) / np.linalg.norm([0.62, -0.05])
+    across = np.array([-axis[1], axis[0]])
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    edge_normals = np.stack([np.cos(poly.normal_angle), np.sin(poly.normal_angle)], 1) @ R.T
+    lo_turn, hi_turn = -np.deg2rad(15.0), np.deg2rad(45.0)
+
+    def excess(normals: np.ndarray, side: float) -> np.ndarray:
+        turn = np.degrees(np.arctan2(normals @ axis, normals @ (side * across)))
+        return np.maximum(turn - np.degrees(hi_turn), np.degrees(lo_turn) - turn)
+
+    for row, side in enumerate((1.0, -1.0)):
+        lo, hi = arcs[row]
+        span = np.mod(hi - lo, 2 * np.pi)
+        assert 0.0 < span < np.pi
+        frames = poly.locate(lo + np.linspace(0.01, 0.99, 25) * span)
+        allowed = max(0.0, excess(edge_normals, side).min())  # 0 when some face qualifies
+        assert np.all(excess(frames.normal @ R.T, side) <= allowed + 1e-6)
+    if yaw_deg == 0.0 and name == "pentagon":
+        # a corner points at the arm: no arc point on the near faces (54 deg towards the palm)
+        for lo, hi in arcs:
+            frames = poly.locate(lo + np.linspace(0.0, 1.0, 25) * np.mod(hi - lo, 2 * np.pi))
+            assert np.all(frames.normal @ R.T @ axis > -np.sin(np.deg2rad(20.0)))
+
+
+def test_grasp_synthesis_keeps_each_contact_on_its_arc() -> None:
+    """With arcs the controller's contacts never leave them, and the grasp it converges to on
+    the pentagon's two far side faces still passes S_G; without arcs the same start leaves
+    them."""
+    poly = paper_object("pentagon")
+    target = ReachTarget(poly, (0.0, 0.0), 0.0, 0.95)
+    arcs = lateral_arcs(target, (-0.6, 0.0))
+    theta0 = np.array([0.9, 1.7, -0.9, -1.7])
+    per_contact = arcs[[0, 0, 1, 1]]
+    pads = {"min_separation": 0.021, "separation_offset": 0.0085}
+    syn = GraspSynthesis(
+        poly, KnowledgeBased(), theta0, np.random.default_rng(0), arcs=per_contact, **pads
+    )
+    free = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0), **pads)
+    left = []
+    while not syn.done:
+        syn.step()
+        np.testing.assert_allclose(clamp_to_arcs(syn.theta, per_contact), syn.theta)
+    while not free.done:
+        free.step()
+        left.append(not np.allclose(clamp_to_arcs(free.theta, per_contact), free.theta))
+    assert any(left)
+    assert syn.converged and syn.finish().success
+    with pytest.raises(GraspError, match="one \\(lo, hi\\) interval per contact"):
+        GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0), arcs=arcs)
+
+
+def test_a_synthesis_stopped_at_earlier_contacts_is_done_there_and_scored_there() -> None:
+    """A lateral grasp whose controller's contacts leave the hand's reach stops at the last ones
+    it reached (Wrench Closure): the run is then done, not converged, its contacts are those,
+    and its score is theirs (checked against a fresh synthesis started there)."""
+    poly = paper_object("square")
+    theta0 = np.array([0.3, 1.2, -2.8, -1.9])
+    syn = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0))
+    for _ in range(5):
+        syn.step()
+    assert not np.allclose(syn.theta, theta0)
+    syn.stop_at(theta0)
+    assert syn.done and syn.stopped and not syn.converged
+    np.testing.assert_allclose(syn.theta, theta0)
+    fresh = GraspSynthesis(poly, KnowledgeBased(), theta0, np.random.default_rng(0))
+    assert syn.score_at(theta0).s_g == pytest.approx(fresh.score().s_g)
+    assert syn.finish().s_g == pytest.approx(fresh.score().s_g)
+    with pytest.raises(GraspError, match="already finished"):
+        syn.step()
+
+
+def test_a_lateral_hand_backs_out_only_as_far_as_it_stays_clear() -> None:
+    """Random scene 1004 (2 blocks) has a neighbour between the arm's base and the target: from
+    the lateral coarse goal, backing the palm out the full ``backoff`` along the approach axis
+    collides (it pushed the neighbour 149 mm), ``clear_backoff`` stops short of that, and every
+    step up to it is collision-free (checked independently here)."""
+    world = World.build(episode_scene("random", 1004, 2))
+    target = ReachTarget.from_world(world, "square_0")
+    checker = CollisionChecker(world, hand_q=PRESHAPE)  # the coarse reach's hand
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    goal = solve_goal(checker, "lateral", goal_poses(target, base)["lateral"], world.arm_qpos())
+    assert goal is not None
+    world.data.qpos[robot.arm_qpos_addresses(world.model)] = goal.q
+    world.data.qpos[robot.hand_qpos_addresses(world.model)] = PRESHAPE
+    mujoco.mj_forward(world.model, world.data)
+    site = BlockSite(world, world.model, target, world.block_body_id("square_0"),
+                     goal.palm_rotation[:, 2], lateral=True)  # fmt: skip
+    back = clear_backoff(site)
+    full = site.params.backoff
+    assert 0.0 <= back < full
+    # touching counts: the motion's clearance (0)
+    checker = CollisionChecker(world, hand_q=PRESHAPE, clearance=site.params.reposition_clearance)
+    assert not checker.collides(goal.q)
+    palm, R = checker.palm_pose(goal.q)
+    q = goal.q
+    for d in np.arange(site.params.approach_step, full + 1e-9, site.params.approach_step):
+        ik = checker.solve_ik(palm - d * site.axis, R, q)
+        blocked = not ik.found or checker.collides(ik.q)
+        assert blocked == (d > back + 1e-9), d
+        if blocked:
+            break
+        q = ik.q
+    else:
+        pytest.fail("the full backoff is clear")
+
+
 @pytest.mark.parametrize("seed", [0])
 @pytest.mark.e2e
 def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path) -> None:
@@ -188,6 +317,27 @@ def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path)
     assert code == 0 and s["success"], s["failure_detail"]
     (cycle,) = s["cycles"]
     assert cycle["approach"] == "lateral"
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+
+
+@pytest.mark.e2e
+def test_a_lateral_grasp_of_the_pentagon_takes_its_side_faces_and_delivers_it(
+    tmp_path: Path,
+) -> None:
+    """Issue 23: the pentagon, a corner towards the arm, failed laterally (mf on a near face,
+    96 deg from its pad). Its contacts are now on the side faces beyond the near ones (whose
+    points lie at x < -0.8 cm), and the block is delivered, judged physically."""
+    out = tmp_path / "pentagon"
+    code = main(
+        ["--scene", "single_pentagon", "--approach", "lateral", "--out", str(out), "--no-record"]
+    )
+    s = json.loads((out / "summary.json").read_text())
+    assert code == 0 and s["success"], s["failure_detail"]
+    (cycle,) = s["cycles"]
+    assert cycle["approach"] == "lateral" and cycle["s_g"] <= 0.4
+    assert np.asarray(cycle["contacts"])[:, 0].min() > -0.007
     j = cycle["judgement"]
     assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
