@@ -291,8 +291,8 @@ def test_grasp(
     world.reset()
     spec = world.scene.block(sw.name)
     body = world.block_body_id(sw.name)
-    load = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
-    load /= GRIP_FORCE
+    weight = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
+    load = weight / GRIP_FORCE
     syn = synthesize(
         out.model,
         sw.target.polygon,
@@ -346,7 +346,6 @@ def test_grasp(
         points = held_contacts(world, sw.name)
         if points is not None:
             out.measures = grasp_measures(points, sw.target.polygon, sw.target.yaw, load).to_json()
-            weight = load * GRIP_FORCE
             compliance = grasp_compliance(world, sw.name, weight, DIRECTIONS)
             if compliance is not None:
                 out.measures["predicted_turn"] = round(compliance.worst_turn, 6)
