@@ -26,6 +26,7 @@ from controllers.grasp.trials import (
     GAIN,
     MAX_STEPS,
     N_CONTACTS,
+    DescentSettings,
     PolygonBatch,
     run_trials,
     trial_summary,
@@ -109,7 +110,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if prism is None:
         result = run_trials([poly], index, composer, rng, batch=batch, **settings)
     else:
-        result = run_trials_3d(prism, index, composer, rng, **settings)
+        result = run_trials_3d(prism, index, composer, rng, DescentSettings(**settings))
     elapsed = time.perf_counter() - start
     summary = trial_summary(result, elapsed)
     summary.update(

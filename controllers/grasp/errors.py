@@ -9,6 +9,10 @@ class PolygonError(GraspError, ValueError):
     """A polygon given by a user is malformed (too few vertices, non-convex, zero area...)."""
 
 
+class TrialSettingsError(GraspError, ValueError):
+    """Trial settings that cannot run (fewer than 2 contacts, no step)."""
+
+
 class UnknownNameError(GraspError, KeyError):
     """An object, controller or experiment name is not one of the known ones."""
 

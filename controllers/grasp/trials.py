@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.composition import Composer
+from controllers.grasp.errors import TrialSettingsError
 from controllers.grasp.polygon import Polygon, wrap_angle
 from controllers.grasp.polygon_batch import PolygonBatch
 from controllers.grasp.score import GraspScore, grasp_score
@@ -125,6 +126,24 @@ class Descent:
     converged: NDArray[np.bool_]
 
 
+@dataclass(frozen=True)
+class DescentSettings:
+    """How a batch of trials descends (section 3.6.2): contacts per grasp, the step budget, the
+    gain of ``theta <- theta - gain * gradient`` and the task wrench (None: no task term).
+    Refuses settings that cannot run."""
+
+    n_contacts: int = N_CONTACTS
+    max_steps: int = MAX_STEPS
+    gain: float = GAIN
+    task: ArrayLike | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_contacts < 2:
+            raise TrialSettingsError(f"a grasp needs at least 2 contacts, got {self.n_contacts}")
+        if self.max_steps < 1:
+            raise TrialSettingsError(f"max_steps must be >= 1, got {self.max_steps}")
+
+
 def descend(
     composer: Composer,
     rng: np.random.Generator,
@@ -177,10 +196,7 @@ def run_trials(
     ``rng`` draws the initial contacts (unless ``theta_initial`` is given) and is passed to the
     composer (exploration, pre-image noise). The same seed gives the same result.
     """
-    if n_contacts < 2:
-        raise ValueError(f"a grasp needs at least 2 contacts, got {n_contacts}")
-    if max_steps < 1:
-        raise ValueError(f"max_steps must be >= 1, got {max_steps}")
+    DescentSettings(n_contacts, max_steps, gain, task)
     batch = batch or PolygonBatch.of(polygons)
     idx = np.asarray(object_index, dtype=np.int64)
     n_trials = idx.shape[0]

@@ -47,7 +47,7 @@ from controllers.grasp.prism import ContactFrames3D, face_axes
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.session import separate_contacts
 from controllers.grasp.state import ControlState3D
-from controllers.grasp.trials import GAIN, MAX_STEPS, N_CONTACTS, descend
+from controllers.grasp.trials import DescentSettings, descend
 from controllers.grasp.wrench3d import mc_residual
 
 
@@ -318,11 +318,8 @@ def run_trials_3d(
     object_index: ArrayLike,
     composer: Composer,
     rng: np.random.Generator,
+    settings: DescentSettings | None = None,
     *,
-    n_contacts: int = N_CONTACTS,
-    max_steps: int = MAX_STEPS,
-    gain: float = GAIN,
-    task: ArrayLike | None = None,
     initial: tuple[ArrayLike, ArrayLike] | None = None,
     min_separation: float = 0.0,
     separation_offset: float = 0.0,
@@ -334,16 +331,14 @@ def run_trials_3d(
     gradients are (T, 2n), theta then height. ``min_separation`` > 0 keeps the pads apart
     after every step as the planar :class:`~controllers.grasp.session.GraspSynthesis` does
     (:func:`~controllers.grasp.session.separate_contacts` on theta, lengths in the polygons'
-    own unit; one trial at a time, for a robot's few trials). The same seed gives the same
-    result."""
-    if n_contacts < 2:
-        raise GraspError(f"a grasp needs at least 2 contacts, got {n_contacts}")
-    if max_steps < 1:
-        raise GraspError(f"max_steps must be >= 1, got {max_steps}")
+    own unit; one trial at a time, for a robot's few trials). ``settings`` says how many
+    contacts, steps, the gain and the task (default :class:`DescentSettings`). The same seed
+    gives the same result."""
+    settings = settings or DescentSettings()
     idx = np.asarray(object_index, dtype=np.int64)
     n = idx.shape[0]
     if initial is None:
-        theta, z = random_contacts_3d(rng, batch, idx, n_contacts)
+        theta, z = random_contacts_3d(rng, batch, idx, settings.n_contacts)
     else:
         theta = np.array(initial[0], dtype=float).reshape(n, -1)
         z = np.array(initial[1], dtype=float).reshape(n, -1)
@@ -354,7 +349,9 @@ def run_trials_3d(
     coords = {"theta": theta, "z": z}
 
     def evaluate(step: int, active: NDArray[np.bool_]) -> ControlState3D:
-        return control_state_3d(batch, idx, coords["theta"], coords["z"], step, active, task)
+        return control_state_3d(
+            batch, idx, coords["theta"], coords["z"], step, active, settings.task
+        )
 
     def move(delta: NDArray[np.float64], active: NDArray[np.bool_]) -> NDArray[np.float64]:
         coords["theta"], coords["z"], moved = advance(
@@ -362,10 +359,10 @@ def run_trials_3d(
         )
         return moved
 
-    run = descend(composer, rng, n, max_steps, gain, evaluate, move)
+    run = descend(composer, rng, n, settings.max_steps, settings.gain, evaluate, move)
     state, steps, converged = run.state, run.steps, run.converged
     theta, z = coords["theta"], coords["z"]
-    scores = score_contacts_3d(state.frames, task)
+    scores = score_contacts_3d(state.frames, settings.task)
     success = np.array([s.success for s in scores])
     composer.end(state, success)
     return TrialBatch3D(
