@@ -116,6 +116,30 @@ class CoarseReachPlan:
     candidates: dict[str, ArmPath] = field(default_factory=dict)
     reason: str = ""
     no_goal: tuple[str, ...] = ()  #: approaches with no collision-free goal posture (IK)
+    #: Why ``approach`` was taken, for the transition log (:func:`choice_reason`).
+    choice: str = ""
+
+
+def choice_reason(
+    approaches: tuple[str, ...], candidates: dict[str, ArmPath], no_goal: tuple[str, ...], best: str
+) -> str:
+    """Why ``best`` was taken among ``approaches`` (section 5.2: the paths decide): the only one
+    asked for, the only one with a path (each other one's reason named: no collision-free goal
+    posture, or its planner's), or the shortest path (the lengths compared, rad)."""
+    if len(approaches) == 1:
+        return f"the only approach asked for (--approach {best})"
+    others = [a for a in approaches if a != best]
+    lost = {a: "no collision-free goal posture" for a in others if a in no_goal}
+    lost |= {a: candidates[a].reason for a in others if a in candidates and not candidates[a].found}
+    if len(lost) == len(others):
+        why = "; ".join(f"{a}: {r}" for a, r in lost.items())
+        return f"the only approach with a path ({why})"
+    lengths = ", ".join(
+        f"{a} {candidates[a].length:.2f} rad"
+        for a in approaches
+        if a in candidates and candidates[a].found
+    )
+    return f"the shortest path in joint space ({lengths})"
 
 
 def _grasp_axis(target: ReachTarget) -> NDArray[np.float64]:
@@ -242,5 +266,13 @@ def plan_coarse_reach(
         )
     best = min(found, key=lambda a: found[a].length)
     return CoarseReachPlan(
-        True, best, found[best], goals[best], hand, candidates, "reached goal", missing
+        True,
+        best,
+        found[best],
+        goals[best],
+        hand,
+        candidates,
+        "reached goal",
+        missing,
+        choice_reason(approaches, candidates, missing, best),
     )

@@ -205,9 +205,14 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "| blocks | episodes | delivered where asked | success rate | Wilson 95 % interval |",
         "|---|---|---|---|---|",
     ]
-    rows = [("all", s.episodes, s.successes)] + [
-        (str(b) if b is not None else "scene file", n, k) for b, n, k in s.by_blocks
-    ]
+    rows = (
+        [("all", s.episodes, s.successes)]
+        + [(str(b) if b is not None else "scene file", n, k) for b, n, k in s.by_blocks]
+        + [
+            (f"{a} approach" if a != "none" else "no approach chosen", n, k)
+            for a, n, k in s.by_approach
+        ]
+    )
     for label, n, k in rows:
         r = wilson_interval(k, n)
         out.append(
@@ -218,7 +223,9 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "",
         f"Delivered {s.successes} of {s.episodes}: {_pct(s.rate.estimate)}, Wilson 95 % interval "
         f"[{_pct(s.rate.low)}, {_pct(s.rate.high)}] (lower bound {_pct(s.rate.low)}). "
-        f"Delivered elsewhere: {s.elsewhere}. Failed: {failed}.",
+        f"Delivered elsewhere: {s.elsewhere}. Failed: {failed}. The rows by approach split "
+        "the episodes by the approach their first cycle took (none chosen: it failed before Coarse "
+        "Reach chose one).",
         "",
         f"![success rate]({FIGURES['success']})",
         "",

@@ -141,6 +141,24 @@ class BenchSummary:
     elsewhere: int = 0  #: episodes delivered elsewhere (ELSEWHERE), not in the success rate
     cycles: tuple[CycleRow, ...] = ()
     tables_cleared: int = 0
+    #: (approach of the first cycle, episodes, successes); "none" when no coarse path was found
+    by_approach: tuple[tuple[str, int, int], ...] = ()
+
+
+def first_approach(line: dict[str, Any]) -> str:
+    """The approach (top, lateral) the episode's first cycle took, ``none`` when it took none
+    (it failed before Coarse Reach chose one)."""
+    cycles = line.get("cycles") or []
+    return (cycles[0].get("approach") if cycles else None) or "none"
+
+
+def tally(keys: Sequence[Any], ok: Sequence[bool]) -> dict[Any, list[int]]:
+    """Per key: [episodes, successes]."""
+    rows: dict[Any, list[int]] = defaultdict(lambda: [0, 0])
+    for key, good in zip(keys, ok, strict=True):
+        rows[key][0] += 1
+        rows[key][1] += good
+    return rows
 
 
 def _state_order(names: set[str]) -> list[str]:
@@ -159,11 +177,8 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         raise ValueError("no episode to summarize")
     kinds = [outcome(e) for e in eps]
     ok = [k == DELIVERED for k in kinds]
-    blocks: dict[int | None, list[int]] = defaultdict(lambda: [0, 0])
-    for e, good in zip(eps, ok, strict=True):
-        row = blocks[e.get("blocks")]
-        row[0] += 1
-        row[1] += good
+    blocks = tally([e.get("blocks") for e in eps], ok)
+    approaches = tally([first_approach(e) for e in eps], ok)
     by_blocks = tuple(
         (b, n, k) for b, (n, k) in sorted(blocks.items(), key=lambda kv: (kv[0] is None, kv[0]))
     )
@@ -220,6 +235,7 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         elsewhere=kinds.count(ELSEWHERE),
         cycles=cycle_rows(eps),
         tables_cleared=sum(table_cleared(e) for e in eps),
+        by_approach=tuple((a, n, k) for a, (n, k) in sorted(approaches.items())),
     )
 
 

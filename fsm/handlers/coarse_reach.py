@@ -22,12 +22,11 @@ def coarse_reach(ep: Episode) -> Step:
     ep.record.approach = plan.approach
     run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
     touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
-    lengths = ", ".join(f"{a} {p.length:.2f} rad" for a, p in plan.candidates.items() if p.found)
     preshape = ""
     if plan.approach == "lateral":
         done = lateral_preshape(ep)
         preshape = "; " + (done or "no pinch pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
-        f"{plan.approach} approach (paths: {lengths}); touched {touched} on the way{preshape}",
+        f"{plan.approach} approach: {plan.choice}; touched {touched} on the way{preshape}",
     )

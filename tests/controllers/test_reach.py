@@ -145,6 +145,26 @@ def test_far_target_plans_both_approaches_and_picks_the_shorter():
     assert rot[:, 2] @ to_block / np.linalg.norm(to_block) > 0.99
     run = execute_path(world, plan.path.path, hand_q=plan.hand_q)
     assert run.contacts == ()
+    assert plan.choice.startswith("the shortest path in joint space")
+    assert f"top {lengths['top']:.2f} rad" in plan.choice
+
+
+def test_a_pillar_behind_the_target_leaves_only_the_lateral_approach():
+    """behind_a_pillar: the top approach's hand, 4 cm above the target's top, meets the 40 cm
+    pillar 2.5 cm behind it; the lateral one comes from the arm's side, so the path decides."""
+    world = World.build(load_scene("behind_a_pillar"))
+    target = ReachTarget.from_world(world, world.scene.target)
+    plan = plan_coarse_reach(world, target)
+    assert plan.found and plan.approach == "lateral"
+    assert plan.no_goal == ("top",)
+    assert plan.choice == ("the only approach with a path (top: no collision-free goal posture)")
+    # without the pillar the top approach is the shorter one
+    alone = dataclasses.replace(
+        world.scene, blocks=tuple(b for b in world.scene.blocks if b.name != "pillar")
+    )
+    free = World.build(alone)
+    plan_free = plan_coarse_reach(free, ReachTarget.from_world(free, alone.target))
+    assert plan_free.approach == "top"
 
 
 def carried_contacts(world: World, block: str, path: np.ndarray, lift_gap: float) -> list:

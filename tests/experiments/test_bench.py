@@ -134,7 +134,8 @@ def test_results_file_keeps_whole_lines_and_drops_a_torn_one(tmp_path: Path) -> 
 
 # --- the report -----------------------------------------------------------------------------------
 def _synthetic_lines() -> list[dict[str, Any]]:
-    """Ten episodes with known outcomes: 7 delivered, 2 fingers that cannot reach, 1 crash."""
+    """Ten episodes with known outcomes: 7 delivered, 2 fingers that cannot reach, 1 crash;
+    the even seeds delivered from the top, the odd ones from the side (seed 7 failed there)."""
     rng = np.random.default_rng(5)
     states = [s.value for s in State][:7]
     lines = []
@@ -151,9 +152,14 @@ def _synthetic_lines() -> list[dict[str, Any]]:
                 "visits": [
                     {"state": s, "wall_seconds": float(rng.uniform(0.1, 5.0))} for s in entered
                 ],
-                "cycles": []
+                "cycles": ([{"approach": "lateral"}] if seed == 7 else [])
                 if failure
-                else [{"judgement": {"place_error_mm": float(rng.gamma(2.0, 2.0))}}],
+                else [
+                    {
+                        "approach": "lateral" if seed % 2 else "top",
+                        "judgement": {"place_error_mm": float(rng.gamma(2.0, 2.0))},
+                    }
+                ],
                 "sim_time": 30.0,
                 "wall_time": 12.0,
             }
@@ -172,6 +178,12 @@ def test_report_numbers_match_the_results(tmp_path: Path) -> None:
     rows = {r[0]: r for r in table(report, "Failure reasons")}
     assert rows["fingers cannot reach"][3] == "3, 7" and rows[CRASHED][3] == "8"
     assert "--seeds 0:10 --blocks 3:5 --controller kb" in report
+    split = {r[0]: r[1:3] for r in table(report, "Success rate") if "approach" in r[0]}
+    assert split == {
+        "lateral approach": ["4", "3"],
+        "no approach chosen": ["2", "0"],
+        "top approach": ["4", "4"],
+    }
     s = summarize([*lines, dict(lines[0], success=False)])  # a seed's first line counts
     assert (s.episodes, s.successes) == (10, 7)
 
