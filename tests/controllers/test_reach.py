@@ -149,10 +149,11 @@ def test_far_target_plans_both_approaches_and_picks_the_shorter():
     assert f"top {lengths['top']:.2f} rad" in plan.choice
 
 
-def test_a_pillar_behind_the_target_leaves_only_the_lateral_approach():
-    """behind_a_pillar: the top approach's hand, 4 cm above the target's top, meets the 40 cm
-    pillar 2.5 cm behind it; the lateral one comes from the arm's side, so the path decides."""
-    world = World.build(load_scene("behind_a_pillar"))
+@pytest.mark.parametrize("scene", ["behind_a_pillar", "tall_neighbours"])
+def test_pillars_around_the_target_leave_only_the_lateral_approach(scene: str):
+    """The top approach's hand, 4 cm above the target's top, meets the 40 cm pillars behind (and
+    beside) it; the lateral one comes from the arm's side, so the path decides."""
+    world = World.build(load_scene(scene))
     target = ReachTarget.from_world(world, world.scene.target)
     plan = plan_coarse_reach(world, target)
     assert plan.found and plan.approach == "lateral"
@@ -160,7 +161,7 @@ def test_a_pillar_behind_the_target_leaves_only_the_lateral_approach():
     assert plan.choice == ("the only approach with a path (top: no collision-free goal posture)")
     # without the pillar the top approach is the shorter one
     alone = dataclasses.replace(
-        world.scene, blocks=tuple(b for b in world.scene.blocks if b.name != "pillar")
+        world.scene, blocks=tuple(b for b in world.scene.blocks if "pillar" not in b.name)
     )
     free = World.build(alone)
     plan_free = plan_coarse_reach(free, ReachTarget.from_world(free, alone.target))

@@ -60,7 +60,9 @@ def test_named_scene_is_physically_sensible(name: str) -> None:
             assert sampled_gap(fps[i], fps[j], 100) >= MIN_BLOCK_GAP - 1e-4
     assert np.all(np.array(scene.place) >= lo) and np.all(np.array(scene.place) <= hi)
     for b in scene.blocks:
-        assert b.height == pytest.approx(0.20)
+        # the paper's blocks are about 20 cm tall; a scene may add taller pillars around them
+        tall = b.name != scene.target and "pillar" in b.name
+        assert b.height == pytest.approx(0.40 if tall else 0.20)
         assert 0.03 <= b.polygon.diameter <= 0.07  # "about 5 cm across"
 
 
