@@ -2,8 +2,9 @@
 
 "The path is computed by the same harmonic path planning algorithm used in the coarse reach
 module" (:func:`controllers.arm_path.plan_arm_path`), with the block moving rigidly with the
-palm: straight up to :data:`CARRY_HEIGHT`, a harmonic transit, and straight down until the
-block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-down is sensed,
+palm: straight up to :data:`CARRY_HEIGHT` (higher when a taller neighbour is still within the
+planning clearance there: :func:`rise_until_clear`), a harmonic transit, and straight down until
+the block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-down is sensed,
 :mod:`controllers.transport`).
 """
 
@@ -33,6 +34,12 @@ CARRY_HEIGHT = 0.05
 SET_DOWN_HOVER = 0.02
 #: Clearance (m) the hand keeps from everything but the table all the way down to the hover.
 SET_DOWN_CLEARANCE = 0.003
+#: When the block held at the carry height still leaves the hand within the planning clearance
+#: of something (a neighbour taller than the block, which the hand grasped beside it), the palm
+#: rises further, RISE_STEP at a time and at most MAX_EXTRA_RISE (m), keeping
+#: SET_DOWN_CLEARANCE on the way, until the transit can start clear.
+RISE_STEP = 0.02
+MAX_EXTRA_RISE = 0.30
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +60,26 @@ def _rotate_z(angle: float) -> NDArray[np.float64]:
     """Rotation by ``angle`` (rad) about the world z axis."""
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rise_until_clear(
+    checker: CollisionChecker, tight: CollisionChecker, q_from: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """Postures of the palm risen straight up from ``q_from`` (k, 5), ending at the first one
+    clear of everything by ``checker``'s clearance, each rise collision-free by ``tight``'s;
+    None when none is found within :data:`MAX_EXTRA_RISE` (or the arm cannot rise)."""
+    p, R = checker.palm_pose(q_from)
+    q = q_from
+    risen = []
+    for k in range(1, round(MAX_EXTRA_RISE / RISE_STEP) + 1):
+        ik = checker.solve_ik(p + np.array([0.0, 0.0, k * RISE_STEP]), R, q)
+        if not ik.found or first_collision(tight, np.stack([q, ik.q])) is not None:
+            return None
+        q = ik.q
+        risen.append(q)
+        if not checker.collides(q):
+            return np.stack(risen)
+    return None
 
 
 def plan_delivery(
@@ -106,6 +133,7 @@ def plan_delivery(
     down_z = table + 0.5 * height + hover
     up = np.array([0.0, 0.0, carry_z - b0[2]])
     start = q0
+    lead = [q0]
     if up[2] > 1e-4:
         lift_ik = checker.solve_ik(p0 + up, R0, q0)
         # the block may touch the table in the first 2 * clearance of the lift
@@ -116,6 +144,13 @@ def plan_delivery(
         if first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
             return fail("lifting the block collides")
         start = lift_ik.q
+        lead.append(start)
+    if checker.collides(start):
+        risen = rise_until_clear(checker, descent, start)
+        if risen is not None:
+            lead += list(risen)
+            start = risen[-1]
+            carry_z = float(checker.carried_pose(start)[0][2])
     base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id]
     turn = float(
         np.arctan2(place[1] - base[1], place[0] - base[0])
@@ -146,6 +181,6 @@ def plan_delivery(
     transit = plan_arm_path(checker, start, high, resolution=resolution)
     if not transit.found:
         return fail(f"transit: {transit.reason}", transit)
-    path = dedupe_path(np.vstack([q0[None], transit.path, down[None]]))
+    path = dedupe_path(np.vstack([*lead[:-1], transit.path, down[None]]))
     block_goal, _ = checker.carried_pose(down)
     return DeliveryPlan(True, path, transit, block_goal, "reached goal")
