@@ -127,12 +127,13 @@ class TendonLayout:
         return np.column_stack((self.flex_actuator, self.ext_actuator)).ravel()
 
     def angles(self, data: mujoco.MjData) -> NDArray[np.float64]:
-        """The 16 joint angles (rad) read by the joint-angle sensors."""
-        return data.sensordata[self.angle_sensor_adr].copy()
+        """The 16 joint angles (rad) read by the joint-angle sensors (a copy)."""
+        return data.sensordata[self.angle_sensor_adr]
 
     def tensions(self, data: mujoco.MjData) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Measured (flexor, extensor) tensions (N) of the 16 joints, from the tension sensors."""
-        return data.sensordata[self.flex_sensor_adr].copy(), data.sensordata[self.ext_sensor_adr]
+        """Measured (flexor, extensor) tensions (N) of the 16 joints, from the tension sensors
+        (copies)."""
+        return data.sensordata[self.flex_sensor_adr], data.sensordata[self.ext_sensor_adr]
 
 
 @dataclass(frozen=True)
