@@ -2,7 +2,7 @@
 those of models/hand.xml; each of its 32 tendons turns its joint the right way and only pulls; the
 tension sensors read the tendons' forces; a joint holds a load up to r T_max and gives way above;
 joint friction makes it stick until the torque exceeds the friction; the closed-loop hand steps a
-grasp motion cleanly."""
+grasp motion cleanly; it attaches to the arm as hand_sim attaches hand.xml."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from dm_control import mjcf
 
 from controllers.tendon_control import TendonHandController, TendonLayout
 from hand_sim import robot
@@ -201,3 +202,24 @@ def test_pd_grasp_motion_steps_cleanly() -> None:
     assert log["measured"].min() >= 0.0 and log["measured"].max() <= T_MAX
     mid = np.argmin(np.abs(log["time"] - 1.0))
     np.testing.assert_allclose(log["angles"][mid], closed, atol=0.05)
+
+
+def test_it_attaches_to_the_arm_as_hand_sim_attaches_hand_xml() -> None:
+    """dm_control parses the model (its schema knows every element used) and attaches it at the
+    arm's flange the way hand_sim.assembly does; the controller finds its 16 joints, 32 tendons
+    and sensors under hand_sim's prefix, with the model's parameters intact."""
+    arm = mjcf.from_path(str(MODELS / "arm.xml"))
+    arm.model = robot.ARM_MODEL
+    for key in list(arm.keyframe.all_children()):
+        key.remove()
+    hand = mjcf.from_path(str(HAND))
+    hand.model = robot.HAND_MODEL
+    arm.find("site", robot.ATTACHMENT_SITE).attach(hand)
+    root = mjcf.RootElement(model="tendon_hand_on_arm")
+    root.attach(arm)
+    model = mjcf.Physics.from_mjcf_model(root).model.ptr
+    layout = TendonLayout.from_model(model, prefix=robot.HAND_PREFIX)
+    np.testing.assert_allclose(layout.radius, RADIUS)
+    np.testing.assert_allclose(layout.max_tension, T_MAX)
+    np.testing.assert_allclose(model.dof_frictionloss[layout.dof_adr], FRICTION)
+    assert model.nu == 32 + len(robot.ARM_ACTUATORS)
