@@ -15,6 +15,7 @@ from controllers.cspace import CollisionChecker
 from controllers.delivery import SET_DOWN_HOVER, plan_delivery
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
+from controllers.grasp.objects import paper_object
 from controllers.reach import PRESHAPE, ReachTarget, plan_coarse_reach
 from hand_sim import robot
 from hand_sim.scene import load_scene
@@ -228,3 +229,58 @@ def test_delivery_carries_the_block_to_the_place_point_without_collision():
     assert carried_contacts(world, "pentagon", delivery.path, 0.02) == []
     with pytest.raises(ReachError, match="place point"):
         plan_delivery(world, "pentagon", [np.nan, 0.0])
+
+
+def _holding_the_pentagon(scene) -> World:
+    """clutter3's world with the hand on the pentagon (coarse reach, fingertips on its faces)."""
+    world = World.build(scene)
+    plan = plan_coarse_reach(world, ReachTarget.from_world(world, "pentagon"))
+    execute_path(world, plan.path.path, hand_q=plan.hand_q)
+    assert fine_reach(world, "pentagon").reached
+    return world
+
+
+def _palm_yaw(world: World, q: np.ndarray) -> float:
+    _, rot = CollisionChecker(world).palm_pose(q)
+    return float(np.arctan2(rot[1, 0], rot[0, 0]))
+
+
+#: Width (m) of the post that stands in the held hand's way at the set-down.
+POST_WIDTH = 0.015
+
+
+def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_place_point():
+    """A post stands 3 cm beyond where a fingertip would be at the set-down: the hand as it holds
+    the block (and turned with the waist) cannot set it down; turned further about the place
+    point it can (controllers.delivery.SET_DOWN_TURNS; before them: "no collision-free posture
+    above the place point"), and the carried block touches nothing on the way (independent
+    check)."""
+    scene = load_scene("clutter3")
+    world = _holding_the_pentagon(scene)
+    first = plan_delivery(world, "pentagon", scene.place)
+    assert first.found, first.reason
+    m = world.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = world.data.qpos
+    d.qpos[robot.arm_qpos_addresses(m)] = first.path[-1]
+    mujoco.mj_kinematics(m, d)
+    tips = np.array([d.site_xpos[m.site(robot.hand_name(s)).id] for s in robot.FINGERTIP_SITES])
+    place = np.asarray(scene.place)
+    far = tips[np.argmax(np.linalg.norm(tips[:, :2] - place, axis=1)), :2]
+    spot = far + 0.03 * (far - place) / np.linalg.norm(far - place)
+    post = paper_object("square").scaled(POST_WIDTH / np.ptp(paper_object("square").vertices[:, 0]))
+    obstacle = dataclasses.replace(
+        scene.block("pentagon"), name="post", polygon=post, position=tuple(spot), yaw=0.0
+    )
+    crowded = dataclasses.replace(scene, blocks=(*scene.blocks, obstacle))
+    world = _holding_the_pentagon(crowded)
+    second = plan_delivery(world, "pentagon", scene.place)
+    assert second.found, second.reason
+    np.testing.assert_allclose(second.block_goal[:2], place, atol=2e-3)
+    turned = abs(
+        np.angle(
+            np.exp(1j * (_palm_yaw(world, second.path[-1]) - _palm_yaw(world, first.path[-1])))
+        )
+    )
+    assert turned > np.deg2rad(30.0)
+    assert carried_contacts(world, "pentagon", second.path, 0.02) == []
