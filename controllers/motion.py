@@ -28,6 +28,7 @@ from controllers.reach import ReachTarget
 from controllers.timing import SERVO_SETTLE_TIME
 from controllers.transport import move_palm
 from hand_sim import robot
+from hand_sim.blocks import GEOM_SUFFIX
 from hand_sim.contacts import robot_contacts
 from hand_sim.world import World
 
@@ -219,6 +220,37 @@ def approach_clear(
             return False
         q = ik.q
     return True
+
+
+def approach_touches(
+    site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64]
+) -> tuple[str, ...]:
+    """The blocks other than the target that the hand, held at ``hand_q``, touches on the
+    straight approach :func:`reposition` makes to ``arm_q`` (the last ``backoff`` along the
+    approach axis, checked every ``approach_step``): names of the blocks whose geoms the hand's
+    or arm's touch in the planning model (no clearance), the perceived target and the table left
+    out. Empty when the approach passes clear of every neighbour."""
+    p = site.params
+    checker = CollisionChecker(site.world, model=site.planning, hand_q=hand_q, clearance=0.0)
+    palm, R = checker.palm_pose(arm_q)
+    target = site.world.model.body(site.block_body).name
+    touched: list[str] = []
+    q = np.asarray(arm_q, dtype=float)
+    for back in np.arange(0.0, p.backoff + 1e-9, p.approach_step):
+        ik = checker.solve_ik(palm - back * site.axis, R, q)
+        if not ik.found:
+            break
+        q = ik.q
+        for c in checker.contacts(q, clearance=0.0):
+            for name in (c.geom1, c.geom2):
+                robotic = name.startswith((robot.HAND_PREFIX, robot.ARM_PREFIX))
+                own = name.removesuffix(GEOM_SUFFIX) == target
+                if robotic or own or name == PERCEIVED_GEOM or "table" in name:
+                    continue
+                block = name.removesuffix(GEOM_SUFFIX)
+                if block not in touched:
+                    touched.append(block)
+    return tuple(touched)
 
 
 def approach_plan(

@@ -11,7 +11,7 @@ import numpy as np
 from controllers.cspace import CollisionChecker
 from controllers.grip import PRE_CONTACT
 from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, reachable_contacts
-from controllers.motion import approach, reposition
+from controllers.motion import approach, approach_touches, reposition
 from controllers.palm_candidates import PalmPose, PoseSetting, lateral_poses, roll_seeds, top_poses
 from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds
 from controllers.planning_model import PERCEIVED_GEOM
@@ -56,6 +56,7 @@ def posture_control(ep: Episode) -> Step:
             return regrasp_or_fail(ep)
         return Step(State.WRENCH_CLOSURE, "no arm posture reaches the contacts yet")
     ep.contacts = found.contacts
+    touched = ""
     plan = found.approach
     if plan is None and slides(ep):
         plan = plan_approach(ep, found.qpos, found.contacts)
@@ -72,10 +73,15 @@ def posture_control(ep: Episode) -> Step:
             pad_centres=pre_pads,
             qpos=found.qpos,
         ).hand_q
+        # measured, not acted on yet: a straight approach that touches a neighbour may push it
+        touches = approach_touches(block_site(ep), found.arm_q, hand_pre)
         reposition(block_site(ep), found.arm_q, hand_pre)
+        if touches:
+            touched = f"; its straight approach met {', '.join(touches)} (planning model)"
     return Step(
         State.WRENCH_CLOSURE,
-        f"arm reconfigured (search from {found.label}) so that the contacts are within reach",
+        f"arm reconfigured (search from {found.label}) so that the contacts are within reach"
+        + touched,
     )
 
 

@@ -16,6 +16,7 @@ from controllers.fine_reach import fine_reach, obstacle_grid
 from controllers.finger_geometry import PerceivedPrism
 from controllers.hand_reach import MIN_PAD_SPACING, check_reach
 from controllers.harmonic import GridSpec
+from controllers.motion import BlockSite, approach_touches
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
 from controllers.posture import apply_posture, solve_posture
 from controllers.reach import PRESHAPE, ReachTarget
@@ -151,3 +152,45 @@ def test_wrist_load_ignores_the_arms_own_acceleration() -> None:
         raw.append(world.wrist_wrench()[0][2] - empty[2])
     assert np.max(np.abs(raw)) > 1.0  # the raw force swings by more than a newton
     assert np.max(np.abs(loads)) < 0.2 * np.max(np.abs(raw))
+
+
+def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_the_target() -> None:
+    """controllers.motion.approach_touches: the pre-shaped hand's straight 8 cm approach to a
+    palm pose just above single_square's block meets a post standing where a fingertip passes
+    (a neighbour it would push) and nothing else; without the post it meets nothing (the block
+    itself, perceived or true, and the table are not neighbours)."""
+    base_scene = load_scene("single_square")
+    found = {}
+    for with_post in (False, True):
+        scene = base_scene
+        world = World.build(scene)
+        truth = ReachTarget.from_world(world, "square")
+        model = planning_model(
+            world, "square", truth.polygon, truth.yaw, truth.position_xy, truth.top_z
+        )
+        checker = CollisionChecker(world, model=model, clearance=0.0, hand_q=PRESHAPE)
+        base = checker.data.xpos[model.body(robot.arm_name("arm_base")).id]
+        down = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+        goal = np.array([*truth.position_xy, truth.top_z + 0.08])
+        waist = np.arctan2(goal[1] - base[1], goal[0] - base[0])
+        ik = checker.solve_ik(goal, down, [waist, 0.3, 1.5, 1.3, 0.0])
+        assert ik.found
+        if with_post:
+            # a slender post under the first finger's tip, clear of the block
+            tip = checker.data.site_xpos[model.site(robot.qualified("ff_tip")).id][:2]
+            post = dataclasses.replace(
+                scene.block("square"),
+                name="post",
+                polygon=scene.block("square").polygon.scaled(0.3),
+                position=(float(tip[0]), float(tip[1])),
+            )
+            scene = dataclasses.replace(scene, blocks=(*scene.blocks, post))
+            world = World.build(scene)
+            model = planning_model(
+                world, "square", truth.polygon, truth.yaw, truth.position_xy, truth.top_z
+            )
+        site = BlockSite(
+            world, model, truth, world.block_body_id("square"), np.array([0.0, 0.0, -1.0])
+        )
+        found[with_post] = approach_touches(site, ik.q, np.asarray(PRESHAPE))
+    assert found == {False: (), True: ("post",)}
