@@ -252,6 +252,14 @@ class TendonDrive:
         """Write the command's 32 tensions to the tendon actuators."""
         data.ctrl[self.layout.actuators] = command.as_ctrl()
 
+    def rest(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Put every tendon at the pretension, commanded and actual (the actuators' first-order
+        lag state): the hand at rest with no tendon slack, as the real hand was started."""
+        acts = self.layout.actuators
+        data.ctrl[acts] = self.pretension
+        adr = model.actuator_actadr[acts]
+        data.act[adr[adr >= 0]] = self.pretension
+
     def step(
         self, model: mujoco.MjModel, data: mujoco.MjData, target: ArrayLike, n: int = 1
     ) -> None:

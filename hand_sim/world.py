@@ -144,7 +144,8 @@ class World:
             )
 
     def _go_home(self, home: dict[str, float]) -> None:
-        """Arm at the ``home`` keyframe, hand at its reference posture, every servo holding it."""
+        """Arm at the ``home`` keyframe, hand at its reference posture, every servo holding it
+        (the tendon hand's tendons at their pretension)."""
         d = self.data
         for name, value in home.items():
             j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, robot.arm_name(name))
@@ -153,8 +154,10 @@ class World:
         if self.with_robot:
             d.ctrl[self._idx.arm_ctrl] = d.qpos[self._idx.arm_qpos]
             d.ctrl[self._idx.hand_ctrl] = d.qpos[self._idx.hand_qpos]
+        if self.tendon_drive is not None:
+            self.tendon_drive.rest(self.model, d)
         mujoco.mj_forward(self.model, d)
-        self._initial = (d.qpos.copy(), d.qvel.copy(), d.ctrl.copy())
+        self._initial = (d.qpos.copy(), d.qvel.copy(), d.ctrl.copy(), d.act.copy())
 
     # --- stepping --------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
@@ -198,8 +201,9 @@ class World:
     def reset(self) -> None:
         """Back to the state right after :meth:`build` (time 0, blocks placed, arm at home)."""
         mujoco.mj_resetData(self.model, self.data)
-        qpos, qvel, ctrl = self._initial
+        qpos, qvel, ctrl, act = self._initial
         self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = qpos, qvel, ctrl
+        self.data.act[:] = act
         mujoco.mj_forward(self.model, self.data)
         self._warnings = self._warning_counts()
 
