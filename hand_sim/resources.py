@@ -1,4 +1,4 @@
-"""Where graspsim's data files are: the MJCF models (``models/*.xml``) and the scene files
+"""Where graspsim's data files are: the MJCF models (``models/*.xml``, ``models/utah_mit_hand/``) and the scene files
 (``scenes/*.toml``, including the random generator's defaults ``scenes/random.toml``).
 
 In a checkout (and an editable install) they are the top-level folders ``models/`` and ``scenes/``
