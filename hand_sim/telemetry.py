@@ -136,22 +136,18 @@ def series_names(hand: str = "servo") -> list[str]:
     """Names (under ``scalars/``) of the series logged at the scalar rate with the ``hand``
     (``World.hand``), in the order of a row of :meth:`WorldTelemetry.scalar_row`."""
     arm = robot.ARM_JOINTS
-    hand_joints = [f"{f}/j{i}" for f in robot.FINGERS for i in range(robot.JOINTS_PER_FINGER)]
-    tendons = tendon_series_names() if hand == "tendon" else []
-    return [*_common_series_names(arm, hand_joints), *tendons]
-
-
-def _common_series_names(arm: tuple[str, ...], hand: list[str]) -> list[str]:
+    joints = [f"{f}/j{i}" for f in robot.FINGERS for i in range(robot.JOINTS_PER_FINGER)]
     return [
         *(f"arm/{j}/q" for j in arm),
         *(f"arm/{j}/target" for j in arm),
-        *(f"hand/{j}/q" for j in hand),
-        *(f"hand/{j}/target" for j in hand),
+        *(f"hand/{j}/q" for j in joints),
+        *(f"hand/{j}/target" for j in joints),
         *(f"actuator_force/arm/{j}" for j in arm),
-        *(f"actuator_force/hand/{j}" for j in hand),
+        *(f"actuator_force/hand/{j}" for j in joints),
         *(f"touch/{f}" for f in robot.FINGERS),
         *(f"wrist/force/{a}" for a in "xyz"),
         *(f"wrist/torque/{a}" for a in "xyz"),
+        *(tendon_series_names() if hand == "tendon" else []),
     ]
 
 
