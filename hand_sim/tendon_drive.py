@@ -254,7 +254,8 @@ class TendonDrive:
 
     def rest(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Put every tendon at the pretension, commanded and actual (the actuators' first-order
-        lag state): the hand at rest with no tendon slack, as the real hand was started."""
+        lag state): the hand at rest with no tendon slack (a slack tendon would take the first
+        5 ms of a command to take up)."""
         acts = self.layout.actuators
         data.ctrl[acts] = self.pretension
         adr = model.actuator_actadr[acts]
