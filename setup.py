@@ -14,8 +14,10 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 ROOT = Path(__file__).resolve().parent
-#: Top-level data folder -> file pattern copied into the wheel (see hand_sim/resources.py).
-DATA_FOLDERS = {"models": "*.xml", "scenes": "*.toml"}
+#: Top-level data folder -> file patterns copied into the wheel, keeping their subfolders (see
+#: hand_sim/resources.py): the MJCF models, the tendon-driven hand's folder (its model, scene and
+#: README), the scene files.
+DATA_FOLDERS = {"models": ("*.xml", "utah_mit_hand/*"), "scenes": ("*.toml",)}
 #: Where they go inside the built package tree.
 INSTALLED_DATA = Path("hand_sim", "_data")
 
@@ -23,11 +25,14 @@ INSTALLED_DATA = Path("hand_sim", "_data")
 def data_files() -> list[tuple[Path, Path]]:
     """(source file, destination relative to the build folder) for every data file."""
     pairs = []
-    for folder, pattern in DATA_FOLDERS.items():
-        files = sorted((ROOT / folder).glob(pattern))
-        if not files:
-            raise SystemExit(f"setup.py: no {pattern} in {ROOT / folder}; is this a full checkout?")
-        pairs += [(f, INSTALLED_DATA / folder / f.name) for f in files]
+    for folder, patterns in DATA_FOLDERS.items():
+        for pattern in patterns:
+            files = sorted(f for f in (ROOT / folder).glob(pattern) if f.is_file())
+            if not files:
+                raise SystemExit(
+                    f"setup.py: no {pattern} in {ROOT / folder}; is this a full checkout?"
+                )
+            pairs += [(f, INSTALLED_DATA / folder / f.relative_to(ROOT / folder)) for f in files]
     return pairs
 
 

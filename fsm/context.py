@@ -21,13 +21,15 @@ from controllers.hand_reach import FingerContacts, HandReach
 from controllers.reach import CoarseReachPlan, ReachTarget
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
-from hand_sim.world import World
+from hand_sim.world import DEFAULT_HAND, HAND_KINDS, World
 
 #: Controllers and approaches the command line accepts.
 CONTROLLERS = ("pi", "kb", "ql")
 APPROACH_CHOICES = ("auto", "top", "lateral")
 #: Grasp models of a top grasp (``--model``).
 GRASP_MODELS = ("planar", "3d")
+#: Hands the arm can carry (``--hand``; hand_sim.assembly.HAND_KINDS).
+HANDS = HAND_KINDS
 #: What Deliver may do when it cannot set the block down at the place point asked for: "none"
 #: fails the episode there (the default: an episode is judged where it was asked to deliver);
 #: "nearest" delivers to the nearest free slot and reports it as delivered elsewhere.
@@ -57,6 +59,8 @@ class EpisodeOptions:
     out: Path = Path("runs/clutter3-0")
     record: bool = True
     models: Path | None = None  #: trained models folder (default: the shipped ones)
+    #: the hand on the arm: "servo" (models/hand.xml) or "tendon" (models/utah_mit_hand/)
+    hand: str = DEFAULT_HAND
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
 

@@ -193,7 +193,7 @@ def run_episode(
     wall0 = time.perf_counter()
     rrd_path, summary_path = out_paths(options.out)
     scene = episode_scene(options.scene, options.seed, options.blocks)
-    world = World.build(scene)
+    world = World.build(scene, hand=options.hand)
     models = {"model_dir": options.models} if options.models is not None else {}
     composer = make_composer(options.controller, **models)
     rng = np.random.default_rng(options.seed)

@@ -43,6 +43,7 @@ from hand_sim.recorder import (
 from hand_sim.telemetry import (
     FORCE_ARROW_SCALE,
     PART_COLOURS,
+    TENDON_PATH,
     RecordingStats,
     TelemetryRates,
     WorldTelemetry,
@@ -193,6 +194,11 @@ class EpisodeRecorder(ClosesOnExit):
             rrb.Spatial2DView(origin=f"{CAMERAS_PATH}/vision", name="Select/Model image"),
         )
         s = SCALARS_PATH
+        tendon = (
+            [rrb.TimeSeriesView(origin=f"{s}/{TENDON_PATH}", name="tendon tensions")]
+            if world.hand == "tendon"
+            else []
+        )
         plots = rrb.Tabs(
             rrb.TimeSeriesView(
                 name="touch & contact forces",
@@ -206,6 +212,7 @@ class EpisodeRecorder(ClosesOnExit):
                 name="wrench closure (synthesis_step)",
                 contents=[f"+ {s}/synthesis/**", f"+ {s}/wrench_closure/**"],
             ),
+            *tendon,
         )
         log = rrb.TextLogView(origin=EVENTS_PATH, name="events")
         return rrb.Blueprint(

@@ -20,6 +20,7 @@ from fsm.context import (
     APPROACH_CHOICES,
     CONTROLLERS,
     GRASP_MODELS,
+    HANDS,
     PLACE_FALLBACKS,
     EpisodeOptions,
     out_paths,
@@ -83,6 +84,18 @@ def add_place_fallback(ap: argparse.ArgumentParser) -> None:
         help="when the block cannot be set down at the place point asked for (--place, "
         "--place-pixel or the scene's): none fails the episode there; nearest delivers to the "
         "nearest free slot and reports the block as delivered elsewhere",
+    )
+
+
+def add_hand(ap: argparse.ArgumentParser) -> None:
+    """``--hand``, as ``fsm.run`` and ``experiments.bench`` take it."""
+    ap.add_argument(
+        "--hand",
+        default="servo",
+        choices=HANDS,
+        help="the hand on the arm: servo (models/hand.xml, 16 position servos) or tendon (the "
+        "Utah/MIT hand as built, models/utah_mit_hand/: 32 pull-only tendons, joint PD loop "
+        "every physics step; docs/models.md)",
     )
 
 
@@ -164,6 +177,7 @@ def parser() -> ArgumentParser:
         help="trained models folder from `python -m controllers.grasp reproduce --out DIR` "
         "(default: the shipped ones)",
     )
+    add_hand(ap)
     ap.add_argument("--no-record", action="store_true", help="skip the .rrd recording (faster)")
     return ap
 
@@ -264,6 +278,7 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         out=out,
         record=not args.no_record,
         models=None if args.models is None else Path(args.models),
+        hand=args.hand,
     )
 
 

@@ -17,10 +17,20 @@ from hand_sim.blocks import add_block
 from hand_sim.errors import SimulationError
 from hand_sim.resources import models_dir
 from hand_sim.scene_spec import Scene, TableSpec
+from hand_sim.tendon_drive import SERVO_KP
 
 #: Directory of the MJCF models (hand.xml, arm.xml, table.xml), found by :mod:`hand_sim.resources`.
 MODELS_DIR = models_dir()
 ARM_XML, HAND_XML, TABLE_XML = "arm.xml", "hand.xml", "table.xml"
+#: The hands the arm can carry (``World.build(hand=...)``, ``fsm.run --hand``): "servo", the
+#: generic hand of models/hand.xml with 16 position servos; "tendon", the Utah/MIT hand as built
+#: (models/utah_mit_hand/), 32 pull-only tendons driven by :mod:`hand_sim.tendon_drive`.
+HAND_XMLS: dict[str, str] = {"servo": HAND_XML, "tendon": "utah_mit_hand/utah_mit_hand.xml"}
+HAND_KINDS: tuple[str, ...] = tuple(HAND_XMLS)
+DEFAULT_HAND = "servo"
+#: Actuator group of the tendon hand's 16 joint-target registers (:func:`_add_target_registers`),
+#: disabled in the world's options so that they exert no force.
+TARGET_REGISTER_GROUP = 5
 #: Model name given to the attached table (its names get the prefix ``table/``).
 TABLE_MODEL = "table"
 #: Largest allowed difference (m) between the scene's table height and the table model's top.
@@ -73,15 +83,21 @@ def camera_height_above_table(size_xy: tuple[float, float]) -> float:
 
 
 def build_mjcf(
-    scene: Scene, *, with_robot: bool = True, models_dir: Path = MODELS_DIR
+    scene: Scene,
+    *,
+    with_robot: bool = True,
+    models_dir: Path = MODELS_DIR,
+    hand: str = DEFAULT_HAND,
 ) -> tuple[mjcf.RootElement, dict[str, float]]:
     """The root MJCF element of ``scene`` and the arm's ``home`` posture (joint name -> rad; empty
-    without the robot). The arm stands at :data:`ARM_BASE_POSITION`, the hand on its
-    ``attachment_site``, the blocks on the table top."""
+    without the robot). The arm stands at :data:`ARM_BASE_POSITION`, the ``hand`` (one of
+    :data:`HAND_KINDS`) on its ``attachment_site``, the blocks on the table top."""
+    if hand not in HAND_XMLS:
+        raise SimulationError(f"unknown hand {hand!r}; valid: {', '.join(HAND_KINDS)}")
     root = _new_root(scene.name)
     _add_table(root, scene.table, models_dir)
     _add_light_and_camera(root, scene.table)
-    home = _add_robot(root, models_dir) if with_robot else {}
+    home = _add_robot(root, models_dir, hand) if with_robot else {}
     for block in scene.blocks:
         add_block(root, block, scene.table.height)
     return root, home
@@ -154,10 +170,14 @@ def _add_light_and_camera(root: mjcf.RootElement, table: TableSpec) -> None:
     )
 
 
-def _add_robot(root: mjcf.RootElement, models_dir: Path) -> dict[str, float]:
-    """The arm at its base position with the hand on its flange; returns the home posture."""
+def _add_robot(root: mjcf.RootElement, models_dir: Path, kind: str) -> dict[str, float]:
+    """The arm at its base position with the ``kind`` hand on its flange; returns the home
+    posture."""
     arm = _load(models_dir / ARM_XML, robot.ARM_MODEL)
-    hand = _load(models_dir / HAND_XML, robot.HAND_MODEL)
+    hand = _load(models_dir / HAND_XMLS[kind], robot.HAND_MODEL)
+    if kind == "tendon":
+        _add_target_registers(hand)
+        root.option.actuatorgroupdisable = [TARGET_REGISTER_GROUP]
     site = arm.find("site", robot.ATTACHMENT_SITE)
     if site is None:
         raise SimulationError(f"{models_dir / ARM_XML}: no site {robot.ATTACHMENT_SITE!r}")
@@ -166,6 +186,25 @@ def _add_robot(root: mjcf.RootElement, models_dir: Path) -> dict[str, float]:
     frame.pos = list(ARM_BASE_POSITION)
     frame.quat = [math.cos(ARM_BASE_YAW / 2), 0.0, 0.0, math.sin(ARM_BASE_YAW / 2)]
     return _home_posture(models_dir / ARM_XML)
+
+
+def _add_target_registers(hand: mjcf.RootElement) -> None:
+    """Give the tendon hand the 16 joint-target registers the servo hand's position actuators
+    are: position actuators with its names (:data:`robot.HAND_ACTUATORS`), the joint ranges as
+    control ranges and the PD stiffness (:data:`~hand_sim.tendon_drive.SERVO_KP`) as gain, in
+    the actuator group :data:`TARGET_REGISTER_GROUP` that the world disables. They exert no
+    force: their ``ctrl`` holds the joint targets that :class:`~hand_sim.tendon_drive.TendonDrive`
+    turns into tensions at every step, and code that reads the servo hand's targets, ranges or
+    stiffness by name (``RobotIndices.hand_ctrl``) reads the tendon hand's the same way."""
+    for name, joint in zip(robot.HAND_ACTUATORS, robot.HAND_JOINTS, strict=True):
+        hand.actuator.add(
+            "position",
+            name=name,
+            joint=joint,
+            kp=SERVO_KP[int(joint[-1])],
+            inheritrange=1,
+            group=TARGET_REGISTER_GROUP,
+        )
 
 
 def _home_posture(path: Path) -> dict[str, float]:

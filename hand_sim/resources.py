@@ -1,5 +1,6 @@
-"""Where graspsim's data files are: the MJCF models (``models/*.xml``) and the scene files
-(``scenes/*.toml``, including the random generator's defaults ``scenes/random.toml``).
+"""Where graspsim's data files are: the MJCF models (``models/*.xml`` and the tendon-driven hand's
+folder ``models/utah_mit_hand/``) and the scene files (``scenes/*.toml``, including the random
+generator's defaults ``scenes/random.toml``).
 
 In a checkout (and an editable install) they are the top-level folders ``models/`` and ``scenes/``
 beside the packages. A wheel cannot hold top-level data folders without spilling generic names into

@@ -10,7 +10,9 @@
 - ``scalars/arm/<joint>/{q,target}``, ``scalars/hand/<finger>/j<i>/{q,target}`` (rad),
   ``scalars/actuator_force/...`` (N m), ``scalars/touch/<finger>`` (N),
   ``scalars/wrist/{force,torque}/{x,y,z}`` (N, N m, world axes) at ``scalar_hz``, buffered
-  (:func:`series_names`);
+  (:func:`series_names`); with the tendon hand also its 32 tendon tensions
+  ``scalars/tendon/<finger>/j<i>_<flex|ext>`` (N, the tension sensors), and its
+  ``actuator_force/hand/...`` are the joint torques the tendon pairs apply (N m);
 - ``world/contacts/{points,forces}``: the contacts between the robot and a target block
   (:meth:`WorldTelemetry.set_contact_target`; ``mj_contactForce`` via
   :func:`hand_sim.contacts.robot_contacts`) as points and arrows whose tip is the contact point
@@ -66,6 +68,9 @@ SERIES_PALETTE: tuple[tuple[int, int, int], ...] = (
     (245, 150, 30),
     (160, 80, 200),
 )
+#: Where the tendon hand's tensions are logged (under ``scalars/``), and the sides of a pair.
+TENDON_PATH = "tendon"
+TENDON_SIDES: tuple[str, ...] = ("flex", "ext")
 #: Names (under ``scalars/``) of the contact force series, :data:`PART_COLOURS` order.
 CONTACT_SERIES: tuple[str, ...] = tuple(f"contact_force/{p}" for p in PART_COLOURS)
 
@@ -116,21 +121,33 @@ def rgba(colour: tuple[int, int, int], alpha: int = 255) -> list[int]:
     return [*colour, alpha]
 
 
-def series_names() -> list[str]:
-    """Names (under ``scalars/``) of the series logged at the scalar rate, in the order of a
-    row of :meth:`WorldTelemetry.scalar_row`."""
+def tendon_series_names() -> list[str]:
+    """Names (under ``scalars/``) of the tendon hand's 32 tension series, joint by joint
+    (:data:`robot.HAND_JOINTS` order), flexor then extensor."""
+    return [
+        f"{TENDON_PATH}/{f}/j{i}_{side}"
+        for f in robot.FINGERS
+        for i in range(robot.JOINTS_PER_FINGER)
+        for side in TENDON_SIDES
+    ]
+
+
+def series_names(hand: str = "servo") -> list[str]:
+    """Names (under ``scalars/``) of the series logged at the scalar rate with the ``hand``
+    (``World.hand``), in the order of a row of :meth:`WorldTelemetry.scalar_row`."""
     arm = robot.ARM_JOINTS
-    hand = [f"{f}/j{i}" for f in robot.FINGERS for i in range(robot.JOINTS_PER_FINGER)]
+    joints = [f"{f}/j{i}" for f in robot.FINGERS for i in range(robot.JOINTS_PER_FINGER)]
     return [
         *(f"arm/{j}/q" for j in arm),
         *(f"arm/{j}/target" for j in arm),
-        *(f"hand/{j}/q" for j in hand),
-        *(f"hand/{j}/target" for j in hand),
+        *(f"hand/{j}/q" for j in joints),
+        *(f"hand/{j}/target" for j in joints),
         *(f"actuator_force/arm/{j}" for j in arm),
-        *(f"actuator_force/hand/{j}" for j in hand),
+        *(f"actuator_force/hand/{j}" for j in joints),
         *(f"touch/{f}" for f in robot.FINGERS),
         *(f"wrist/force/{a}" for a in "xyz"),
         *(f"wrist/torque/{a}" for a in "xyz"),
+        *(tendon_series_names() if hand == "tendon" else []),
     ]
 
 
@@ -155,9 +172,10 @@ def style_series(
     )
 
 
-def style_telemetry_series(stream: rr.RecordingStream) -> None:
+def style_telemetry_series(stream: rr.RecordingStream, hand: str = "servo") -> None:
     """Styles of every telemetry series: a joint's position and its servo target share a colour
-    (the target thinner and paler), fingers keep their colours."""
+    (the target thinner and paler), fingers keep their colours; the tendon hand's tensions take
+    their joint's colour, the extensor drawn thinner and paler."""
     palette = SERIES_PALETTE
     for i, j in enumerate(robot.ARM_JOINTS):
         for kind in ("q", "target"):
@@ -171,6 +189,10 @@ def style_telemetry_series(stream: rr.RecordingStream) -> None:
                 label = f"{f}j{i} {kind}"
                 style_series(stream, f"hand/{f}/j{i}/{kind}", shade, label, target=kind == "target")
             style_series(stream, f"actuator_force/hand/{f}/j{i}", shade, f"{f}a{i}")
+            if hand == "tendon":
+                for side in TENDON_SIDES:
+                    name = f"{TENDON_PATH}/{f}/j{i}_{side}"
+                    style_series(stream, name, shade, f"{f}j{i} {side}", target=side == "ext")
         style_series(stream, f"touch/{f}", PART_COLOURS[f], f"touch {f}")
     for part, colour in PART_COLOURS.items():
         style_series(stream, f"contact_force/{part}", colour, f"{part} on target")
@@ -223,7 +245,7 @@ class WorldTelemetry:
         self.recorder = recorder
         self.world = world
         self.stats = RecordingStats()
-        self.series = series_names()
+        self.series = series_names(world.hand)
         self._schedule = rates.schedule()
         self._target: int | None = None
         self._contacts_shown = False
@@ -240,7 +262,7 @@ class WorldTelemetry:
                 (cam.width, cam.height),
                 image_plane_distance=IMAGE_PLANE_DISTANCE,
             )
-            style_telemetry_series(recorder.stream)
+            style_telemetry_series(recorder.stream, world.hand)
         except BaseException:
             self.camera.close()
             raise
@@ -284,16 +306,22 @@ class WorldTelemetry:
     def scalar_row(self, world: World) -> NDArray[np.float64]:
         """The values of :func:`series_names` now."""
         force, torque = world.wrist_wrench()
+        actuator_force = world.data.actuator_force[self._actuators]
+        tendon: list[NDArray[np.float64]] = []
+        if world.tendon_drive is not None:
+            actuator_force[len(robot.ARM_ACTUATORS) :] = world.hand_joint_torques()
+            tendon = [world.hand_tensions().ravel()]
         return np.concatenate(
             [
                 world.arm_qpos(),
                 world.arm_targets(),
                 world.hand_qpos(),
                 world.hand_targets(),
-                world.data.actuator_force[self._actuators],
+                actuator_force,
                 world.touch(),
                 force,
                 torque,
+                *tendon,
             ]
         )
 

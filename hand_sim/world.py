@@ -20,6 +20,8 @@ from numpy.typing import ArrayLike, NDArray
 from hand_sim import robot
 from hand_sim.assembly import (
     CAMERA_NAME,
+    DEFAULT_HAND,
+    HAND_KINDS,
     MODELS_DIR,
     TABLE_HEIGHT_TOLERANCE,
     TABLE_MODEL,
@@ -32,8 +34,9 @@ from hand_sim.blocks import JOINT_SUFFIX
 from hand_sim.errors import HandSimError, SimulationError
 from hand_sim.indices import RobotIndices, element_id
 from hand_sim.scene_spec import Scene
+from hand_sim.tendon_drive import TendonDrive
 
-__all__ = ["CAMERA_NAME", "MODELS_DIR", "TIMESTEP", "World"]
+__all__ = ["CAMERA_NAME", "DEFAULT_HAND", "HAND_KINDS", "MODELS_DIR", "TIMESTEP", "World"]
 
 #: MuJoCo warnings that mean the simulation can no longer be trusted.
 FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
@@ -50,11 +53,19 @@ class World:
     ``mjcf.Physics`` (``.physics``), with accessors that speak the robot's joint order.
 
     Build with :meth:`build`; step with :meth:`step`, which refuses to continue after NaN or a
-    MuJoCo instability warning.
+    MuJoCo instability warning. ``hand`` is the kind of hand on the arm (:data:`HAND_KINDS`): the
+    servo hand's joint targets are its position servos' controls; the tendon hand's are held in
+    registers of the same names and :meth:`step` closes its joint loop
+    (:class:`~hand_sim.tendon_drive.TendonDrive`) before every physics step.
     """
 
     def __init__(
-        self, scene: Scene, mjcf_root: mjcf.RootElement, physics: mjcf.Physics, with_robot: bool
+        self,
+        scene: Scene,
+        mjcf_root: mjcf.RootElement,
+        physics: mjcf.Physics,
+        with_robot: bool,
+        hand: str = DEFAULT_HAND,
     ) -> None:
         self.scene = scene
         self.mjcf_root = mjcf_root
@@ -62,7 +73,12 @@ class World:
         self.model: mujoco.MjModel = physics.model.ptr
         self.data: mujoco.MjData = physics.data.ptr
         self.with_robot = with_robot
+        self.hand = hand
         self._idx = RobotIndices.of(self.model) if with_robot else RobotIndices.empty()
+        #: The tendon hand's joint loop (None for the servo hand or without the robot).
+        self.tendon_drive: TendonDrive | None = None
+        if with_robot and hand == "tendon":
+            self.tendon_drive = TendonDrive.for_model(self.model, robot.HAND_PREFIX)
         self._block_bodies, self._block_qpos = self._resolve_blocks()
         self._warnings = self._warning_counts()
         #: Called with the world after every :meth:`step` call (a controller steps once per
@@ -72,21 +88,29 @@ class World:
     # --- construction ----------------------------------------------------------------------
     @classmethod
     def build(
-        cls, scene: Scene, *, with_robot: bool = True, models_dir: Path = MODELS_DIR
+        cls,
+        scene: Scene,
+        *,
+        with_robot: bool = True,
+        models_dir: Path = MODELS_DIR,
+        hand: str = DEFAULT_HAND,
     ) -> World:
         """Assemble the MJCF of ``scene``: table, arm (at :data:`ARM_BASE_POSITION`, ``home``
-        posture) carrying the hand, a free prism per block and the overhead camera.
+        posture) carrying the ``hand`` (one of :data:`HAND_KINDS`: "servo", models/hand.xml;
+        "tendon", models/utah_mit_hand/), a free prism per block and the overhead camera.
 
         ``with_robot=False`` leaves the arm and hand out (a lighter world for vision and tests).
         """
-        root, home = build_mjcf(scene, with_robot=with_robot, models_dir=models_dir)
+        if hand not in HAND_KINDS:
+            raise HandSimError(f"unknown hand {hand!r}; valid: {', '.join(HAND_KINDS)}")
+        root, home = build_mjcf(scene, with_robot=with_robot, models_dir=models_dir, hand=hand)
         try:
             physics = mjcf.Physics.from_mjcf_model(root)
         except Exception as e:  # compile errors come from MuJoCo as ValueError
             raise SimulationError(
                 f"the world model for scene {scene.name!r} does not compile: {e}"
             ) from e
-        world = cls(scene, root, physics, with_robot)
+        world = cls(scene, root, physics, with_robot, hand)
         world._check_table()
         world._go_home(home)
         return world
@@ -120,7 +144,8 @@ class World:
             )
 
     def _go_home(self, home: dict[str, float]) -> None:
-        """Arm at the ``home`` keyframe, hand at its reference posture, every servo holding it."""
+        """Arm at the ``home`` keyframe, hand at its reference posture, every servo holding it
+        (the tendon hand's tendons at their pretension)."""
         d = self.data
         for name, value in home.items():
             j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, robot.arm_name(name))
@@ -129,8 +154,10 @@ class World:
         if self.with_robot:
             d.ctrl[self._idx.arm_ctrl] = d.qpos[self._idx.arm_qpos]
             d.ctrl[self._idx.hand_ctrl] = d.qpos[self._idx.hand_qpos]
+        if self.tendon_drive is not None:
+            self.tendon_drive.rest(self.model, d)
         mujoco.mj_forward(self.model, d)
-        self._initial = (d.qpos.copy(), d.qvel.copy(), d.ctrl.copy())
+        self._initial = (d.qpos.copy(), d.qvel.copy(), d.ctrl.copy(), d.act.copy())
 
     # --- stepping --------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
@@ -138,7 +165,12 @@ class World:
         a MuJoCo instability warning (MuJoCo would otherwise silently reset the state)."""
         if n < 0:
             raise HandSimError(f"step count must be >= 0, got {n}")
-        mujoco.mj_step(self.model, self.data, nstep=n)
+        if self.tendon_drive is None:
+            mujoco.mj_step(self.model, self.data, nstep=n)
+        else:
+            lo, hi = self.model.actuator_ctrlrange[self._idx.hand_ctrl].T
+            target = np.clip(self.data.ctrl[self._idx.hand_ctrl], lo, hi)
+            self.tendon_drive.step(self.model, self.data, target, n)
         self.check()
         if self.on_step is not None:
             self.on_step(self)
@@ -169,8 +201,9 @@ class World:
     def reset(self) -> None:
         """Back to the state right after :meth:`build` (time 0, blocks placed, arm at home)."""
         mujoco.mj_resetData(self.model, self.data)
-        qpos, qvel, ctrl = self._initial
+        qpos, qvel, ctrl, act = self._initial
         self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = qpos, qvel, ctrl
+        self.data.act[:] = act
         mujoco.mj_forward(self.model, self.data)
         self._warnings = self._warning_counts()
 
@@ -238,7 +271,8 @@ class World:
         self.data.ctrl[self._idx.arm_ctrl] = self._targets(q5, len(robot.ARM_JOINTS), "arm")
 
     def set_hand_targets(self, q16: ArrayLike) -> None:
-        """Position-servo targets (rad) of the hand's joints, in :data:`robot.HAND_JOINTS` order."""
+        """Position-servo targets (rad) of the hand's joints, in :data:`robot.HAND_JOINTS` order
+        (the tendon hand's joint loop tracks them, clipped to the joint ranges)."""
         self.data.ctrl[self._idx.hand_ctrl] = self._targets(q16, len(robot.HAND_JOINTS), "hand")
 
     def arm_targets(self) -> NDArray[np.float64]:
@@ -275,7 +309,8 @@ class World:
         return self.model.actuator_ctrlrange[self._idx.arm_ctrl].copy()
 
     def hand_ctrlrange(self) -> NDArray[np.float64]:
-        """(16, 2) control range of the hand's servos (rad)."""
+        """(16, 2) control range of the hand's servos (rad): the joint ranges (the servo hand's
+        actuators and the tendon hand's target registers inherit them)."""
         self._require_robot()
         return self.model.actuator_ctrlrange[self._idx.hand_ctrl].copy()
 
@@ -308,3 +343,17 @@ class World:
         i = self._idx.wrist_accel_adr
         R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
         return R @ self.data.sensordata[i : i + 3]
+
+    def hand_tensions(self) -> NDArray[np.float64]:
+        """(16, 2) tendon tensions (N) of the tendon hand's joints (:data:`robot.HAND_JOINTS`
+        order; flexor, extensor), read by its tension sensors; raises for the servo hand."""
+        self._require_robot()
+        if self.tendon_drive is None:
+            raise HandSimError(f"the {self.hand} hand has no tendons")
+        return np.column_stack(self.tendon_drive.layout.tensions(self.data))
+
+    def hand_joint_torques(self) -> NDArray[np.float64]:
+        """(16,) torques (N m) the hand's actuators apply to its joints (the servos, or the
+        tendon pairs), :data:`robot.HAND_JOINTS` order."""
+        self._require_robot()
+        return self.data.qfrc_actuator[self._idx.hand_dof].copy()

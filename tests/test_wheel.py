@@ -32,7 +32,7 @@ PACKAGES = (
     "vision",
 )
 #: Top-level data folders and where the wheel carries them (hand_sim/resources.py, setup.py).
-DATA_FOLDERS = {"models": "*.xml", "scenes": "*.toml"}
+DATA_FOLDERS = {"models": ("*.xml", "utah_mit_hand/*"), "scenes": ("*.toml",)}
 INSTALLED_DATA = "hand_sim/_data"
 #: Left out of the copy the wheel is built from: VCS, environments and build or run outputs.
 COPY_IGNORE = shutil.ignore_patterns(
@@ -91,9 +91,12 @@ def data_files_in_source() -> dict[str, Path]:
     top-level models/ and scenes/ (carried under hand_sim/_data/) and every non-Python file inside
     the packages (e.g. the shipped trained models in controllers/grasp/trained/)."""
     files = {}
-    for folder, pattern in DATA_FOLDERS.items():
-        for f in (REPO / folder).glob(pattern):
-            files[f"{INSTALLED_DATA}/{folder}/{f.name}"] = f
+    for folder, patterns in DATA_FOLDERS.items():
+        for pattern in patterns:
+            for f in (REPO / folder).glob(pattern):
+                if f.is_file():
+                    rel = f.relative_to(REPO / folder).as_posix()
+                    files[f"{INSTALLED_DATA}/{folder}/{rel}"] = f
     for package in PACKAGES:
         for f in (REPO / package).rglob("*"):
             parts = f.relative_to(REPO).parts
@@ -144,9 +147,12 @@ def install(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Install:
 def test_wheel_carries_models_scenes_and_every_data_file(wheel: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     expected = data_files_in_source()
-    assert {f"{INSTALLED_DATA}/models/hand.xml", f"{INSTALLED_DATA}/scenes/random.toml"} <= set(
-        expected
-    )
+    assert {
+        f"{INSTALLED_DATA}/models/hand.xml",
+        f"{INSTALLED_DATA}/models/utah_mit_hand/utah_mit_hand.xml",
+        f"{INSTALLED_DATA}/models/utah_mit_hand/README.md",
+        f"{INSTALLED_DATA}/scenes/random.toml",
+    } <= set(expected)
     missing = sorted(set(expected) - names)
     assert not missing, f"data files missing from {wheel.name}: {missing}"
     with zipfile.ZipFile(wheel) as z:  # copied unchanged
@@ -175,6 +181,8 @@ world = World.build(scene)
 start = {b.name: world.block_pose(b.name)[0] for b in scene.blocks}
 world.step(steps)
 drift = max(float(np.linalg.norm(world.block_pose(n)[0] - p)) for n, p in start.items())
+tendon = World.build(scene, hand="tendon")
+tendon.step(steps)
 print(json.dumps({
     "outside_site": outside,
     "models_dir": models_dir().resolve().relative_to(site).as_posix(),
@@ -183,6 +191,7 @@ print(json.dumps({
     "clutter3_blocks": sorted(b.name for b in scene.blocks),
     "random_blocks": len(rand.blocks),
     "time": world.time, "drift": drift,
+    "tendon_time": tendon.time, "tendon_min_tension": float(tendon.hand_tensions().min()),
 }))
 """
 
@@ -198,6 +207,8 @@ def test_installed_wheel_loads_scenes_and_builds_a_world_from_an_empty_folder(
     assert r["scenes"] == sorted(f.stem for f in (REPO / "scenes").glob("*.toml"))
     assert len(r["clutter3_blocks"]) == 3 and r["random_blocks"] == 4
     assert r["time"] == pytest.approx(SETTLE_STEPS * 0.002)
+    assert r["tendon_time"] == pytest.approx(SETTLE_STEPS * 0.002)  # the tendon hand ships too
+    assert r["tendon_min_tension"] > 0.0
     assert r["drift"] < MAX_DRIFT_M  # the blocks stand still on the table: physics, not just a load
 
 

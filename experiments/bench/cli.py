@@ -43,7 +43,13 @@ from experiments.bench.jobs import (
 )
 from experiments.bench.runners import RAY_LOCAL
 from experiments.bench.stats import DELIVERED, ELSEWHERE, outcome
-from fsm.run import MAX_CYCLES, add_controller_and_approach, add_place_fallback, parse_cycles
+from fsm.run import (
+    MAX_CYCLES,
+    add_controller_and_approach,
+    add_hand,
+    add_place_fallback,
+    parse_cycles,
+)
 from hand_sim.clitools import (
     ERRORS,
     SEED_MAX,
@@ -72,6 +78,7 @@ RESUME_KEYS = (
     "models",
     "cycles",
     "place_fallback",
+    "hand",
 )
 #: Settings of a bench folder written before they existed (what those benches ran: the planar
 #: grasp model, one cycle, and a place point the hand could not set down at moved to a free slot
@@ -81,6 +88,7 @@ SETTING_DEFAULTS = {
     "grasp_model": "planar",
     "cycles": "1",
     "place_fallback": "a free slot, unreported (old rule)",
+    "hand": "servo",
 }
 #: Most episodes one command may ask for.
 MAX_EPISODES = 100_000
@@ -157,6 +165,7 @@ def parser() -> ArgumentParser:
         "'all' to clear its table (as python -m fsm.run)",
     )
     add_place_fallback(ap)
+    add_hand(ap)
     ap.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),
@@ -294,6 +303,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "models": models,
         "cycles": "all" if cycles is None else str(cycles),
         "place_fallback": args.place_fallback,
+        "hand": args.hand,
     }
     done = _check_resume(out, settings, args.resume)
     finished = {int(line["seed"]) for line in done}
@@ -309,6 +319,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             keep_rrd=args.keep_rrd,
             cycles=cycles,
             place_fallback=args.place_fallback,
+            hand=args.hand,
         )
         for s in args.seeds
         if s not in finished

@@ -66,6 +66,7 @@ class Job:
     keep_rrd: bool = False  #: return the recording of a success too
     cycles: int | None = 1  #: blocks picked one after another (None: clear the table)
     place_fallback: str = "none"  #: as fsm.run's --place-fallback
+    hand: str = "servo"  #: as fsm.run's --hand
 
 
 @dataclass(frozen=True)
@@ -116,6 +117,7 @@ def run_job(job: Job) -> JobResult:
             out=Path(tmp),
             record=True,
             models=None if job.models is None else Path(job.models),
+            hand=job.hand,
         )
         rrd_path, summary_path = out_paths(options.out)
         extra: dict[str, Any] = {}

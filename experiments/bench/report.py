@@ -148,6 +148,8 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--place-fallback {settings['place_fallback']}")
     if settings.get("models"):
         parts.append(f"--models {settings['models']}")
+    if settings.get("hand", "servo") != "servo":
+        parts.append(f"--hand {settings['hand']}")
     return " ".join(parts)
 
 

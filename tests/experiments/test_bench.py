@@ -234,6 +234,7 @@ def test_wilson_interval_textbook_value() -> None:
         (["--scene", "nowhere"], "unknown scene"),
         (["--workers", "0"], "--workers"),
         (["--controller", "xx"], "--controller"),
+        (["--hand", "banana"], "--hand"),
         (["--out", ""], "--out"),
     ],
 )
@@ -245,6 +246,15 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path: Path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_the_hand_is_a_setting_of_the_bench_and_of_every_episode(tmp_path: Path) -> None:
+    plan = bench.plan_from_args([*QUICK, "--seeds", "0:2", "--out", str(tmp_path / "o")])
+    assert plan.settings["hand"] == "servo" and {j.hand for j in plan.jobs} == {"servo"}
+    argv = [*QUICK, "--seeds", "0:2", "--hand", "tendon", "--out", str(tmp_path / "t")]
+    plan = bench.plan_from_args(argv)
+    assert plan.settings["hand"] == "tendon" and {j.hand for j in plan.jobs} == {"tendon"}
+    assert "hand" in bench.RESUME_KEYS and bench.SETTING_DEFAULTS["hand"] == "servo"
 
 
 def test_a_controller_without_models_is_refused_before_anything_runs(tmp_path, capsys) -> None:

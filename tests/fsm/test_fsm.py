@@ -281,6 +281,7 @@ def test_interrupt_keeps_the_summary_and_the_recording(tmp_path: Path, monkeypat
         (["--seed", "-1"], "--seed"),
         (["--controller", "xx"], "controller"),
         (["--model", "4d"], "--model"),
+        (["--hand", "banana"], "--hand"),
         (["--out", ""], "--out"),
     ],
 )
