@@ -52,7 +52,7 @@ LIMIT_MARGIN = 0.01
 #: Ridge (m) of the least-squares fit: a finger's joints barely see a force along a nearly
 #: straight or a fully curled finger (a lever of a few millimetres), and an unregularized fit
 #: turns a few hundredths of a newton-metre of torque error into tens of newtons there.
-RIDGE = 0.005
+RIDGE = 0.003
 #: An estimated pad force above this (N) counts as a touch for the tendon hand's guards: above the
 #: estimate's error on a free finger (module docstring; docs/models.md gives the measured floor).
 DETECTION_THRESHOLD = 0.5
