@@ -2,34 +2,36 @@
 sensed: its 16 joint angles and 32 tendon tensions (Jacobsen et al., "Design of the Utah/M.I.T.
 Dextrous Hand", ICRA 1986; "The Utah/MIT Dextrous Hand: Work in Progress", IJRR 3(4), 1984). The
 real hand had no fingertip force sensors; the model's touch pads stay as the ground truth this
-estimate is checked against.
+estimate is checked against (tests/hand_sim/test_contact_estimate.py, docs/models.md).
 
 Per finger (four joints, :data:`hand_sim.robot.HAND_JOINTS` order), with every quantity read at
 the state the sensors sampled:
 
 1. Joint torques from the tension sensors, tau = r (T_flex - T_ext)
    (:func:`hand_sim.tendon_drive.joint_torques`).
-2. The torque the finger needs without a contact: its own weight and velocity terms (MuJoCo's
-   ``qfrc_bias`` on the finger's joints, computed from the sensed angles: a model of the
-   finger's dynamics, as a gravity-compensating controller has), the joints' viscous damping
-   (d qdot), and, while a joint moves faster than :data:`MOVING_SPEED`, its Coulomb friction
-   F sign(qdot) (the tendons' friction in their sheaths always opposes the motion). The rest is
-   the torque an external force makes: tau_ext = tau - tau_bias - d qdot - F sign(qdot).
+2. The torque the finger needs without a contact: its dynamics from the sensed angles,
+   M(q) qddot + bias (MuJoCo's mass matrix times the joint accelerations, which the real
+   controller would get by differentiating its angle sensors, plus ``qfrc_bias``: gravity, the
+   velocity terms and the arm's motion coupled into the finger), the joints' viscous damping
+   d qdot, and the tendons' Coulomb friction -F s, s the direction each joint last slid in
+   (:class:`FrictionMemory`: a joint stopped by its PD loop or by a contact stays at the edge of
+   its stiction band, its friction still opposing the motion that brought it there). The rest is
+   the torque an external force makes: tau_ext = tau - M qddot - bias - d qdot - F s.
 3. That torque as a force at the pad: tau_ext = J^T f, J the (3, 4) translational Jacobian of the
-   contact point over the finger's joints, so f = (J^T)^+ tau_ext (least squares, four torques
-   for three force components). The contact point is first the fingertip site, then the point of
-   the pad's rounded end that faces along f (pad centre + pad radius * f/|f|), and f is solved
-   again there (one refinement: the pad's contact moves over its surface and the lever arms with
-   it).
-4. The normal force is f's component along the pad's normal at that contact, f . f/|f| = |f|
-   when f is normal to the pad surface; the estimate reports |f| (N) beside the vector.
+   contact point over the finger's joints, so f = (J J^T + lambda^2 I)^-1 J tau_ext (least
+   squares, four torques for three force components, with the small ridge :data:`RIDGE`). The
+   contact point is first the fingertip site, then the point of the pad's rounded end that faces
+   along f (pad centre + pad radius * f/|f|), and f is solved again there (one refinement: the
+   contact moves over the pad and the lever arms with it). A joint within :data:`LIMIT_MARGIN`
+   of a range limit is left out: its mechanical stop's torque is not sensed.
+4. The normal force reported is |f| (f is along the pad's normal at that point).
 
-A joint at rest holds its Coulomb friction at any value in [-F, F] (stiction), which the estimate
-cannot see: the residual error of a still finger is up to F per joint, i.e. F / (lever) at the pad
-(0.05 N m over the 2-10 cm levers of the distal to proximal joints). The guards that use the
-estimate therefore have a larger detection threshold than the touch pads'
-(:data:`DETECTION_THRESHOLD`). Everything is numpy on a compiled MuJoCo model and its data; no
-global state.
+A joint that is not sliding holds its friction at any value in [-F, F] (stiction), and the
+memory's sign can be wrong (an overshoot, a load that reversed): the estimate cannot see it. It
+reports how far that unknown friction can move |f| (``uncertainty``: the fit's column norms times
+F over the stuck joints), and the guards ask a new touch to exceed :data:`DETECTION_THRESHOLD`
+plus twice that (``World.touch_guard_floor``). Everything is numpy on a compiled MuJoCo model and
+its data; no global state (the friction memory belongs to its World).
 """
 
 from __future__ import annotations
