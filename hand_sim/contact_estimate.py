@@ -55,8 +55,9 @@ LIMIT_MARGIN = 0.01
 #: straight or a fully curled finger (a lever of a few millimetres), and an unregularized fit
 #: turns a few hundredths of a newton-metre of torque error into tens of newtons there.
 RIDGE = 0.003
-#: An estimated pad force above this (N) counts as a touch for the tendon hand's guards: above the
-#: estimate's error on a free finger (module docstring; docs/models.md gives the measured floor).
+#: The least estimated pad force (N) the tendon hand's guards take for contact: a held contact is
+#: kept above it (``World.touch_floor``); a new touch must exceed it plus twice the stiction
+#: uncertainty (``World.touch_guard_floor``). A freely moving finger reads below it (tested).
 DETECTION_THRESHOLD = 0.5
 
 
@@ -66,7 +67,7 @@ class FrictionMemory:
     loop or by a contact stays at the edge of its stiction band, its friction still -F times that
     direction, until it slides the other way. 0 until the joint first moves."""
 
-    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
+    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(len(robot.HAND_JOINTS)))
 
     def update(self, qdot: NDArray[np.float64]) -> None:
         """Note the joints sliding now (|qdot| > :data:`MOVING_SPEED`)."""
