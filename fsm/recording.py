@@ -196,7 +196,13 @@ class EpisodeRecorder(ClosesOnExit):
         )
         s = SCALARS_PATH
         tendon = (
-            [rrb.TimeSeriesView(origin=f"{s}/{TENDON_PATH}", name="tendon tensions")]
+            [
+                rrb.TimeSeriesView(origin=f"{s}/{TENDON_PATH}", name="tendon tensions"),
+                rrb.TimeSeriesView(
+                    name="pads vs tendon estimate",
+                    contents=[f"+ {s}/touch/**", f"+ {s}/{ESTIMATE_PATH}/**"],
+                ),
+            ]
             if world.hand == "tendon"
             else []
         )
