@@ -24,7 +24,7 @@ from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
-from hand_sim.world import World
+from hand_sim.world import TOUCH_TENDONS, World
 
 #: Depth (m) below the block's top face of the highest default contact points, and the lowest
 #: height (m) above the table they may have.
@@ -241,6 +241,15 @@ def _hand_contacts(world: World, target_body: int) -> tuple[float, set[tuple[str
     return depth, others
 
 
+def guarded_pad_forces(world: World) -> NDArray[np.float64]:
+    """(4,) pad forces (N) the touch guard reacts to: with touch pads, the pads' normal forces on
+    anything but the robot (:func:`hand_sim.contacts.pad_object_forces`); the tendon hand, which
+    senses no contact directly, its estimate from the tendon tensions (``World.touch``)."""
+    if world.touch_source == TOUCH_TENDONS:
+        return world.touch()
+    return pad_object_forces(world)
+
+
 def fine_reach(
     world: World,
     target_name: str,
@@ -259,8 +268,11 @@ def fine_reach(
     perceived (e.g. :meth:`ReachTarget.from_object_model`); default: where the physics has it.
 
     Each fingertip is steered ``standoff`` m outside its surface point. Touch guard: a fingertip
-    whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`) stops where it
-    is, so a finger arriving early does not push the block before the others arrive.
+    whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`; the tendon
+    hand: whose estimated pad force exceeds ``World.touch_guard_floor()``,
+    :func:`guarded_pad_forces`)
+    stops where it is, so a finger arriving early does not push the block before the others
+    arrive.
 
     ``model`` (e.g. the planning model holding the perceived block,
     :mod:`controllers.planning_model`) turns on collision avoidance in the IK: the hand's links
@@ -283,7 +295,7 @@ def fine_reach(
     periods = 0
     for _ in range(round(max_time / CONTROL_PERIOD)):
         tips = world.fingertip_positions()
-        stopped |= pad_object_forces(world) > TOUCH_GUARD
+        stopped |= guarded_pad_forces(world) > np.maximum(TOUCH_GUARD, world.touch_guard_floor())
         err = np.linalg.norm(tips - goals, axis=1)
         if np.all((err < 0.5 * tolerance) | stopped):
             break

@@ -1,6 +1,8 @@
 """Grasp Object (section 5.2): "drives the fingers from their approach configuration ... to the
 virtual finger configuration synthesized by the grasp controller", then squeezes, holds and
-releases, all on the simulated hand's position servos and judged by its touch sensors.
+releases, all on the simulated hand's joint servos and judged by what it senses of its fingertip
+forces (``World.touch``: the servo hand's touch pads; the tendon hand's estimate from its tendon
+tensions, :mod:`hand_sim.contact_estimate`).
 
 Each finger moves on its own line in joint space, from a pre-contact posture (fingertip
 :data:`PRE_CONTACT` outside its contact, pad facing it) through the contact to a posture
@@ -42,7 +44,8 @@ MAX_PRE_CONTACT = 0.024
 #: Closing speed: progress per second along the pre-contact-to-inside line (1 = the whole line;
 #: PRE_CONTACT + SQUEEZE_REACH = 18 mm, so about 18 mm/s at the fingertip).
 CLOSE_RATE = 1.0
-#: A pad "feels" the block above this normal force (N).
+#: A pad "feels" the block above this normal force (N) (for the tendon hand, whose touch is
+#: estimated from its tendon tensions, above ``World.touch_guard_floor()`` if that is higher).
 TOUCH_THRESHOLD = 0.05
 #: Closing gives up when a finger has gone this far past its line's end without touching.
 CLOSE_OVERRUN = 0.5
@@ -317,7 +320,7 @@ def close(world: World, grip: Grip, *, max_time: float = CLOSE_TIME) -> CloseRes
     t0 = world.time
     rate = CLOSE_RATE * CONTROL_PERIOD
     while world.time - t0 < max_time:
-        grip.touched |= world.touch() > TOUCH_THRESHOLD
+        grip.touched |= world.touch() > np.maximum(TOUCH_THRESHOLD, world.touch_guard_floor())
         if grip.touched.all() or grip.progress.max() > 1.0 + CLOSE_OVERRUN:
             break
         grip.progress = np.where(grip.touched, grip.progress, grip.progress + rate)

@@ -41,6 +41,7 @@ from hand_sim.recorder import (
     Recorder,
 )
 from hand_sim.telemetry import (
+    ESTIMATE_PATH,
     FORCE_ARROW_SCALE,
     PART_COLOURS,
     TENDON_PATH,
@@ -195,14 +196,24 @@ class EpisodeRecorder(ClosesOnExit):
         )
         s = SCALARS_PATH
         tendon = (
-            [rrb.TimeSeriesView(origin=f"{s}/{TENDON_PATH}", name="tendon tensions")]
+            [
+                rrb.TimeSeriesView(origin=f"{s}/{TENDON_PATH}", name="tendon tensions"),
+                rrb.TimeSeriesView(
+                    name="pads vs tendon estimate",
+                    contents=[f"+ {s}/touch/**", f"+ {s}/{ESTIMATE_PATH}/**"],
+                ),
+            ]
             if world.hand == "tendon"
             else []
         )
         plots = rrb.Tabs(
             rrb.TimeSeriesView(
                 name="touch & contact forces",
-                contents=[f"+ {s}/touch/**", f"+ {s}/contact_force/**"],
+                contents=[
+                    f"+ {s}/touch/**",
+                    f"+ {s}/contact_force/**",
+                    f"+ {s}/{ESTIMATE_PATH}/**",
+                ],
             ),
             rrb.TimeSeriesView(origin=f"{s}/arm", name="arm joints"),
             rrb.TimeSeriesView(origin=f"{s}/hand", name="hand joints"),

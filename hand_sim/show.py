@@ -151,7 +151,9 @@ def log_state(world: World, rec: Recorder) -> None:
         for name, q, t in zip(ARM_JOINTS, world.arm_qpos(), world.arm_targets(), strict=True):
             rec.log_scalar(f"arm/{name}/qpos", q)
             rec.log_scalar(f"arm/{name}/target", t)
-        for name, f, tip in zip(FINGERS, world.touch(), world.fingertip_positions(), strict=True):
+        for name, f, tip in zip(
+            FINGERS, world.touch_sensors(), world.fingertip_positions(), strict=True
+        ):
             rec.log_scalar(f"touch/{name}", f)
             rec.log_scalar(f"fingertip_z/{name}", tip[2])
 

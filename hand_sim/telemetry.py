@@ -11,8 +11,10 @@
   ``scalars/actuator_force/...`` (N m), ``scalars/touch/<finger>`` (N),
   ``scalars/wrist/{force,torque}/{x,y,z}`` (N, N m, world axes) at ``scalar_hz``, buffered
   (:func:`series_names`); with the tendon hand also its 32 tendon tensions
-  ``scalars/tendon/<finger>/j<i>_<flex|ext>`` (N, the tension sensors), and its
-  ``actuator_force/hand/...`` are the joint torques the tendon pairs apply (N m);
+  ``scalars/tendon/<finger>/j<i>_<flex|ext>`` (N, the tension sensors) and the fingertip forces
+  estimated from them, ``scalars/contact_estimate/<finger>`` (N, what its guards read, beside the
+  touch pads' ground truth ``touch/<finger>``), and its ``actuator_force/hand/...`` are the
+  joint torques the tendon pairs apply (N m);
 - ``world/contacts/{points,forces}``: the contacts between the robot and a target block
   (:meth:`WorldTelemetry.set_contact_target`; ``mj_contactForce`` via
   :func:`hand_sim.contacts.robot_contacts`) as points and arrows whose tip is the contact point
@@ -70,6 +72,9 @@ SERIES_PALETTE: tuple[tuple[int, int, int], ...] = (
 )
 #: Where the tendon hand's tensions are logged (under ``scalars/``), and the sides of a pair.
 TENDON_PATH = "tendon"
+#: Where the tendon hand's estimated fingertip forces are logged (under ``scalars/``), beside
+#: the touch pads' ``touch/<finger>``.
+ESTIMATE_PATH = "contact_estimate"
 TENDON_SIDES: tuple[str, ...] = ("flex", "ext")
 #: Names (under ``scalars/``) of the contact force series, :data:`PART_COLOURS` order.
 CONTACT_SERIES: tuple[str, ...] = tuple(f"contact_force/{p}" for p in PART_COLOURS)
@@ -148,6 +153,7 @@ def series_names(hand: str = "servo") -> list[str]:
         *(f"wrist/force/{a}" for a in "xyz"),
         *(f"wrist/torque/{a}" for a in "xyz"),
         *(tendon_series_names() if hand == "tendon" else []),
+        *(f"{ESTIMATE_PATH}/{f}" for f in (robot.FINGERS if hand == "tendon" else ())),
     ]
 
 
@@ -194,6 +200,10 @@ def style_telemetry_series(stream: rr.RecordingStream, hand: str = "servo") -> N
                     name = f"{TENDON_PATH}/{f}/j{i}_{side}"
                     style_series(stream, name, shade, f"{f}j{i} {side}", target=side == "ext")
         style_series(stream, f"touch/{f}", PART_COLOURS[f], f"touch {f}")
+        if hand == "tendon":
+            style_series(
+                stream, f"{ESTIMATE_PATH}/{f}", PART_COLOURS[f], f"estimate {f}", target=True
+            )
     for part, colour in PART_COLOURS.items():
         style_series(stream, f"contact_force/{part}", colour, f"{part} on target")
     for i, a in enumerate("xyz"):
@@ -310,7 +320,7 @@ class WorldTelemetry:
         tendon: list[NDArray[np.float64]] = []
         if world.tendon_drive is not None:
             actuator_force[len(robot.ARM_ACTUATORS) :] = world.hand_joint_torques()
-            tendon = [world.hand_tensions().ravel()]
+            tendon = [world.hand_tensions().ravel(), world.contact_estimate().normal]
         return np.concatenate(
             [
                 world.arm_qpos(),
@@ -318,7 +328,7 @@ class WorldTelemetry:
                 world.hand_qpos(),
                 world.hand_targets(),
                 actuator_force,
-                world.touch(),
+                world.touch_sensors(),
                 force,
                 torque,
                 *tendon,

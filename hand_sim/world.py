@@ -31,12 +31,31 @@ from hand_sim.assembly import (
     geom_top,
 )
 from hand_sim.blocks import JOINT_SUFFIX
+from hand_sim.contact_estimate import (
+    DETECTION_THRESHOLD,
+    ContactEstimate,
+    ContactEstimator,
+    FrictionMemory,
+)
 from hand_sim.errors import HandSimError, SimulationError
 from hand_sim.indices import RobotIndices, element_id
 from hand_sim.scene_spec import Scene
 from hand_sim.tendon_drive import TendonDrive
 
-__all__ = ["CAMERA_NAME", "DEFAULT_HAND", "HAND_KINDS", "MODELS_DIR", "TIMESTEP", "World"]
+__all__ = [
+    "CAMERA_NAME",
+    "DEFAULT_HAND",
+    "HAND_KINDS",
+    "MODELS_DIR",
+    "TIMESTEP",
+    "TOUCH_PADS",
+    "TOUCH_TENDONS",
+    "World",
+]
+
+#: What :meth:`World.touch` reads: the fingertip touch pads (the servo hand), or the contact
+#: forces estimated from the tendon tensions (the tendon hand, :mod:`hand_sim.contact_estimate`).
+TOUCH_PADS, TOUCH_TENDONS = "touch pads", "tendon-tension estimate"
 
 #: MuJoCo warnings that mean the simulation can no longer be trusted.
 FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
@@ -77,8 +96,14 @@ class World:
         self._idx = RobotIndices.of(self.model) if with_robot else RobotIndices.empty()
         #: The tendon hand's joint loop (None for the servo hand or without the robot).
         self.tendon_drive: TendonDrive | None = None
+        #: The tendon hand's contact-force estimate from its tensions (None otherwise).
+        self.contact_estimator: ContactEstimator | None = None
+        #: The tendon hand's joints' last sliding directions (their friction's sign), updated
+        #: every :meth:`step` call.
+        self.friction_memory = FrictionMemory()
         if with_robot and hand == "tendon":
             self.tendon_drive = TendonDrive.for_model(self.model, robot.HAND_PREFIX)
+            self.contact_estimator = ContactEstimator.for_model(self.model, robot.HAND_PREFIX)
         self._block_bodies, self._block_qpos = self._resolve_blocks()
         self._warnings = self._warning_counts()
         #: Called with the world after every :meth:`step` call (a controller steps once per
@@ -171,6 +196,7 @@ class World:
             lo, hi = self.model.actuator_ctrlrange[self._idx.hand_ctrl].T
             target = np.clip(self.data.ctrl[self._idx.hand_ctrl], lo, hi)
             self.tendon_drive.step(self.model, self.data, target, n)
+            self.friction_memory.update(self.data.qvel[self.tendon_drive.layout.dof_adr])
         self.check()
         if self.on_step is not None:
             self.on_step(self)
@@ -204,6 +230,7 @@ class World:
         qpos, qvel, ctrl, act = self._initial
         self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = qpos, qvel, ctrl
         self.data.act[:] = act
+        self.friction_memory.reset()
         mujoco.mj_forward(self.model, self.data)
         self._warnings = self._warning_counts()
 
@@ -319,12 +346,57 @@ class World:
         self._require_robot()
         return self.data.site_xpos[self._idx.tip_sites].copy()
 
+    @property
+    def touch_source(self) -> str:
+        """What :meth:`touch` reads: :data:`TOUCH_PADS` or :data:`TOUCH_TENDONS`."""
+        return TOUCH_TENDONS if self.contact_estimator is not None else TOUCH_PADS
+
+    @property
+    def touch_floor(self) -> float:
+        """Force (N) at or below which :meth:`touch` means "no contact" (a lost grip): 0 for the
+        touch pads; the estimate's error floor for the tendon hand
+        (:data:`hand_sim.contact_estimate.DETECTION_THRESHOLD`)."""
+        return DETECTION_THRESHOLD if self.contact_estimator is not None else 0.0
+
+    def touch_guard_floor(self) -> NDArray[np.float64]:
+        """(4,) forces (N) :meth:`touch` must exceed before a guard may take it for a new
+        contact: 0 for the touch pads; for the tendon hand, the floor plus twice the estimate's
+        stiction uncertainty now (a stuck joint's friction can be wrong by up to 2F), so that
+        a finger at rest, its friction unknown, is not taken for a touching one
+        (:class:`~hand_sim.contact_estimate.ContactEstimate`)."""
+        if self.contact_estimator is None:
+            self._require_robot()
+            return np.zeros(len(robot.FINGERS))
+        return DETECTION_THRESHOLD + 2.0 * self.contact_estimate().uncertainty
+
     def touch(self) -> NDArray[np.float64]:
+        """(4,) fingertip normal forces (N), order ff, mf, rf, th, as the hand senses them: the
+        servo hand's touch pads (:meth:`touch_sensors`); the tendon hand, which like the real
+        Utah/MIT hand has no fingertip sensors, the estimate from its tendon tensions and joint
+        angles (:meth:`contact_estimate`). :attr:`touch_source` says which."""
+        if self.contact_estimator is not None:
+            return self.contact_estimate().normal
+        return self.touch_sensors()
+
+    def touch_sensors(self) -> NDArray[np.float64]:
         """(4,) fingertip touch sensor readings (N), order ff, mf, rf, th: the normal force on the
         palmar side and tip of each distal pad (contacts on the back of a fingertip, or on other
-        finger links, are not felt; :func:`hand_sim.contacts.hand_contacts` lists those)."""
+        finger links, are not felt; :func:`hand_sim.contacts.hand_contacts` lists those). Both
+        hands have them; for the tendon hand they are the ground truth its estimate is judged
+        against, not something its guards read."""
         self._require_robot()
         return self.data.sensordata[self._idx.touch_adr].copy()
+
+    def contact_estimate(self) -> ContactEstimate:
+        """The tendon hand's fingertip forces estimated from its 32 tension sensors and joint
+        angles (:class:`~hand_sim.contact_estimate.ContactEstimator`); raises for the servo
+        hand."""
+        self._require_robot()
+        if self.contact_estimator is None:
+            raise HandSimError(f"the {self.hand} hand has no tendons to estimate forces from")
+        return self.contact_estimator.estimate(
+            self.model, self.data, self.friction_memory.direction
+        )
 
     def wrist_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The wrist force/torque sensor between the arm's flange and the hand: force (3,) in N

@@ -17,6 +17,9 @@ from graspsim_base import cli
 from hand_sim.clitools import ERRORS
 
 PROG = "python -m experiments.physics"
+#: The hands the study can put on the arm: ``hand_sim.assembly.HAND_KINDS`` and its default,
+#: repeated here because the command line loads MuJoCo only when it runs (tested equal).
+HANDS, DEFAULT_HAND = ("servo", "tendon"), "servo"
 #: Worker processes (more than the machine's cores only adds switching).
 MAX_WORKERS = 64
 
@@ -63,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
             progress=bar.update,
             models=models,
             depth=args.depth,
+            hand=args.hand,
         )
         summary = write_report(
             args.out,
@@ -73,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
             f"{PROG} {args.argv}",
             time.perf_counter() - t0,
             models=models,
+            hand=args.hand,
         )
     print(
         f"{total} grasps, {summary['tested']} tested physically, {summary['held']} held; "
@@ -119,6 +124,14 @@ def build_parser() -> cli.ArgumentParser:
         metavar="M",
         help="planar model: take every contact M metres below the block's top instead of at "
         "its fingertip's height, 0.02..0.15 (the probe behind the 3-D band)",
+    )
+    ph.add_argument(
+        "--hand",
+        choices=HANDS,
+        default=DEFAULT_HAND,
+        help="the hand on the arm: servo (models/hand.xml, position servos) or tendon (the "
+        "Utah/MIT hand's tendon drive, models/utah_mit_hand/; its guards read contact forces "
+        "estimated from the tendon tensions) (default %(default)s)",
     )
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)

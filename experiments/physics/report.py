@@ -28,6 +28,7 @@ from experiments.physics.study import (
 )
 from graspsim_base.files import write_bytes, write_text
 from graspsim_base.pool import map_unordered
+from hand_sim.assembly import DEFAULT_HAND
 
 #: Controllers of the study (section 3.6.1, 3.6.2, section 4 with the general predictor).
 CONTROLLERS: tuple[str, ...] = ("kb", "ql", "pi")
@@ -46,8 +47,10 @@ def jobs_for(
     seed: int,
     models: Sequence[str] = ("planar",),
     depth: float | None = None,
+    hand: str = DEFAULT_HAND,
 ) -> list[Job]:
-    """The study's chunks: per model, object and controller (the same starts for every model)."""
+    """The study's chunks: per model, object and controller (the same starts for every model),
+    with the ``hand`` on the arm."""
     out = []
     for model in models:
         for obj in objects:
@@ -55,7 +58,7 @@ def jobs_for(
             for ci, ctrl in enumerate(CONTROLLERS):
                 for start in range(0, grasps, CHUNK):
                     idx = tuple(range(start, min(grasps, start + CHUNK)))
-                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model, depth))
+                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model, depth, hand))
     return out
 
 
@@ -67,9 +70,11 @@ def run_study(
     progress=None,
     models: Sequence[str] = ("planar",),
     depth: float | None = None,
+    hand: str = DEFAULT_HAND,
 ) -> list[dict]:
-    """Every grasp, in a fixed order (model, object, controller, index) whatever the workers."""
-    jobs = jobs_for(objects, grasps, seed, models, depth)
+    """Every grasp, in a fixed order (model, object, controller, index) whatever the workers,
+    taken by the ``hand`` ("servo" or "tendon")."""
+    jobs = jobs_for(objects, grasps, seed, models, depth, hand)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:
@@ -163,9 +168,10 @@ def sg_histogram(results: list[dict], path: Path) -> None:
     os.replace(tmp, path)
 
 
-def render_grasp(entry: dict, seed: int, path: Path) -> bool:
-    """Re-run one grasp (deterministic) and save a picture: the grasp after the squeeze beside
-    the moment the test lost it. False when the re-run does not reproduce the drop."""
+def render_grasp(entry: dict, seed: int, path: Path, hand: str = DEFAULT_HAND) -> bool:
+    """Re-run one grasp (deterministic, with the ``hand`` that took it) and save a picture: the
+    grasp after the squeeze beside the moment the test lost it. False when the re-run does not
+    reproduce the drop."""
     import mujoco
 
     frames: dict[str, np.ndarray] = {}
@@ -178,6 +184,7 @@ def render_grasp(entry: dict, seed: int, path: Path) -> bool:
         seed,
         entry.get("model", "planar"),
         entry.get("depth"),
+        hand,
     )
     renderer: list = []
 
@@ -235,8 +242,10 @@ def write_report(
     seconds: float,
     pictures: int = PICTURES,
     models: Sequence[str] = ("planar",),
+    hand: str = DEFAULT_HAND,
 ) -> dict:
-    """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures."""
+    """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures; the
+    summary and the report name the ``hand`` that took the grasps."""
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "results.jsonl", "".join(json.dumps(r) + "\n" for r in results))
     tested = [r for r in results if r["result"] in ("held", "dropped")]
@@ -258,7 +267,7 @@ def write_report(
         for r in [r for r in false_pos if r.get("model", "planar") == m][:pictures]:
             prefix = "" if m == "planar" else f"{m}_"
             name = f"dropped_{prefix}{r['object']}_{r['controller']}_{r['index']}.png"
-            if render_grasp(r, seed, out / name):
+            if render_grasp(r, seed, out / name, hand):
                 drawn.append((name, r))
     summary = {
         "command": command,
@@ -275,6 +284,7 @@ def write_report(
         "tpr_fpr_at_best": [tprb, fprb],
         "false_positives": len(false_pos),
         "models": list(models),
+        "hand": hand,
     }
     compare_md, summary["measures"] = measures_section(results, tuple(models))
     if tested:
@@ -285,7 +295,7 @@ def write_report(
         "# The physical grasp study: S_G against MuJoCo",
         "",
         f"Command: `{command}` ({seconds:.0f} s wall). Seed {seed}; {grasps} grasps per object "
-        "and controller.",
+        f"and controller; the {hand} hand.",
         "",
         f"Test: block hanging in the hand (table collisions off), m*g along {stages}, "
         f"{FORCE_TIME:g} s each, then a {LIFT_HEIGHT * 100:.0f} cm lift; held = the block stays "

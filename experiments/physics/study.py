@@ -49,7 +49,7 @@ from hand_sim import robot
 from hand_sim.errors import SimulationError
 from hand_sim.indices import RobotIndices
 from hand_sim.scene import load_scene
-from hand_sim.world import World
+from hand_sim.world import DEFAULT_HAND, World
 
 #: Duration (s) of each external force, its directions (world axes) and the lift (m).
 FORCE_TIME = 2.0
@@ -176,10 +176,11 @@ class StudyWorld:
     checker: CollisionChecker
 
     @classmethod
-    def of(cls, obj: str, model: str = "planar") -> StudyWorld:
-        """``obj``'s world; the hand's seed postures pre-shaped at the depths ``model``'s
-        contacts take (planar: the task cycle's grasp depth; 3-D: both ends of its band)."""
-        world = World.build(load_scene(f"single_{obj}"))
+    def of(cls, obj: str, model: str = "planar", hand: str = DEFAULT_HAND) -> StudyWorld:
+        """``obj``'s world with the ``hand`` (``World.build``'s kinds: "servo" or "tendon") on
+        the arm; the hand's seed postures pre-shaped at the depths ``model``'s contacts take
+        (planar: the task cycle's grasp depth; 3-D: both ends of its band)."""
+        world = World.build(load_scene(f"single_{obj}"), hand=hand)
         name = world.scene.target
         target = ReachTarget.from_world(world, name)
         prism = PerceivedPrism.of(target, world.scene.table.height)
@@ -376,6 +377,8 @@ class Job:
     #: planar model only: take every contact this far (m) below the top instead of at its
     #: fingertip's height (the probe behind the 3-D band, docs/grasp3d_physics.md)
     depth: float | None = None
+    #: the hand on the arm (``World.build``'s kinds; --hand)
+    hand: str = DEFAULT_HAND
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -387,7 +390,7 @@ def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Gener
 
 def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     """Every grasp of ``job``, as JSON-ready dicts, in index order."""
-    sw = StudyWorld.of(job.obj, job.model)
+    sw = StudyWorld.of(job.obj, job.model, job.hand)
     composer = make_composer(job.controller)
     out = []
     for i in job.indices:

@@ -91,7 +91,7 @@ def deliver(ep: Episode) -> Step:
     record.lift_slip = float(lifted.slip)
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
     load = held_load(world, ep.empty_hand_force)
-    lost = world.touch() <= 0.0
+    lost = world.touch() <= world.touch_floor
     if slides(ep):
         # a balanced lateral squeeze holds with two opposed pads; the others only touch lightly
         # (balanced_shares) and may let go as the block settles in the grip
@@ -143,7 +143,7 @@ def deliver(ep: Episode) -> Step:
     def watch(w) -> None:
         """Sensed, not judged: the pads (the wrist is weighed at rest, after the carry)."""
         record.lift_clearance = max(record.lift_clearance, clearance_now(w))
-        lost.append(int((w.touch() > 0.0).sum()) < 2)
+        lost.append(int((w.touch() > w.touch_floor).sum()) < 2)
         if len(lost) == config.drop_window and all(lost):
             raise _DroppedError
 

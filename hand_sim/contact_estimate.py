@@ -1,0 +1,205 @@
+"""Fingertip contact forces of the tendon-driven Utah/MIT hand estimated from what the real hand
+sensed: its 16 joint angles and 32 tendon tensions (Jacobsen et al., "Design of the Utah/M.I.T.
+Dextrous Hand", ICRA 1986; "The Utah/MIT Dextrous Hand: Work in Progress", IJRR 3(4), 1984). The
+real hand had no fingertip force sensors; the model's touch pads stay as the ground truth this
+estimate is checked against (tests/hand_sim/test_contact_estimate.py, docs/models.md).
+
+Per finger (four joints, :data:`hand_sim.robot.HAND_JOINTS` order), with every quantity read at
+the state the sensors sampled:
+
+1. Joint torques from the tension sensors, tau = r (T_flex - T_ext)
+   (:func:`hand_sim.tendon_drive.joint_torques`).
+2. The torque the finger needs without a contact: its dynamics from the sensed angles,
+   M(q) qddot + bias (MuJoCo's mass matrix times the joint accelerations, which the real
+   controller would get by differentiating its angle sensors, plus ``qfrc_bias``: gravity, the
+   velocity terms and the arm's motion coupled into the finger), the joints' viscous damping
+   d qdot, and the tendons' Coulomb friction -F s, s the direction each joint last slid in
+   (:class:`FrictionMemory`: a joint stopped by its PD loop or by a contact stays at the edge of
+   its stiction band, its friction still opposing the motion that brought it there). The rest is
+   the torque an external force makes: tau_ext = tau - M qddot - bias - d qdot - F s.
+3. That torque as a force at the pad: tau_ext = J^T f, J the (3, 4) translational Jacobian of the
+   contact point over the finger's joints, so f = (J J^T + lambda^2 I)^-1 J tau_ext (least
+   squares, four torques for three force components, with the small ridge :data:`RIDGE`). The
+   contact point is first the fingertip site, then the point of the pad's rounded end that faces
+   along f (pad centre + pad radius * f/|f|), and f is solved again there (one refinement: the
+   contact moves over the pad and the lever arms with it). A joint within :data:`LIMIT_MARGIN`
+   of a range limit is left out: its mechanical stop's torque is not sensed.
+4. The normal force reported is |f| (f is along the pad's normal at that point).
+
+A joint that is not sliding holds its friction at any value in [-F, F] (stiction), and the
+memory's sign can be wrong (an overshoot, a load that reversed): the estimate cannot see it. It
+reports how far that unknown friction can move |f| (``uncertainty``: the fit's column norms times
+F over the stuck joints), and the guards ask a new touch to exceed :data:`DETECTION_THRESHOLD`
+plus twice that (``World.touch_guard_floor``). Everything is numpy on a compiled MuJoCo model and
+its data; no global state (the friction memory belongs to its World).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from hand_sim import robot
+from hand_sim.tendon_drive import TendonLayout, joint_torques
+
+#: A joint moving faster than this (rad/s) is sliding: its friction is -F sign(qdot), and it
+#: keeps that sign once the joint sticks (:class:`FrictionMemory`).
+MOVING_SPEED = 0.02
+#: A joint within this angle (rad) of a range limit may be held by its mechanical stop, whose
+#: torque no sensor reads: its equation is left out of the fit.
+LIMIT_MARGIN = 0.01
+#: Ridge (m) of the least-squares fit: a finger's joints barely see a force along a nearly
+#: straight or a fully curled finger (a lever of a few millimetres), and an unregularized fit
+#: turns a few hundredths of a newton-metre of torque error into tens of newtons there.
+RIDGE = 0.003
+#: The least estimated pad force (N) the tendon hand's guards take for contact: a held contact is
+#: kept above it (``World.touch_floor``); a new touch must exceed it plus twice the stiction
+#: uncertainty (``World.touch_guard_floor``). A freely moving finger reads below it (tested).
+DETECTION_THRESHOLD = 0.5
+
+
+@dataclass
+class FrictionMemory:
+    """The direction (-1, 0, +1 per joint, 16) each joint last slid in: a joint stopped by its PD
+    loop or by a contact stays at the edge of its stiction band, its friction still -F times that
+    direction, until it slides the other way. 0 until the joint first moves."""
+
+    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(len(robot.HAND_JOINTS)))
+
+    def update(self, qdot: NDArray[np.float64]) -> None:
+        """Note the joints sliding now (|qdot| > :data:`MOVING_SPEED`)."""
+        moving = np.abs(qdot) > MOVING_SPEED
+        self.direction = np.where(moving, np.sign(qdot), self.direction)
+
+    def reset(self) -> None:
+        """Forget every direction (a hand at rest that has not moved)."""
+        self.direction = np.zeros_like(self.direction)
+
+
+@dataclass(frozen=True)
+class ContactEstimate:
+    """Estimated contact force at each fingertip, order ff, mf, rf, th."""
+
+    normal: NDArray[np.float64]  #: (4,) N, the pad's normal force (|f|)
+    force: NDArray[np.float64]  #: (4, 3) N, force the finger exerts, world axes
+    external_torque: NDArray[np.float64]  #: (16,) N m, tau_ext per joint
+    point: NDArray[np.float64]  #: (4, 3) m, the contact point the force was solved at
+    at_limit: NDArray[np.bool_]  #: (16,) joints left out of the fit (at a range limit)
+    #: (4,) N: how far the stuck joints' unknown friction (up to F each) can move |f|
+    uncertainty: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ContactEstimator:
+    """Where a hand's joints, tendons and pad sites are in a compiled model, and the estimate
+    from them (module docstring)."""
+
+    layout: TendonLayout
+    finger_dofs: NDArray[np.int_]  #: (4, 4) dof addresses, one row per finger
+    tip_sites: NDArray[np.int_]  #: (4,) fingertip site ids
+    pad_centres: NDArray[np.int_]  #: (4,) pad centre site ids
+    damping: NDArray[np.float64]  #: (16,) joint damping (N m s/rad)
+    friction: NDArray[np.float64]  #: (16,) joint Coulomb friction (N m)
+    joint_range: NDArray[np.float64]  #: (16, 2) joint ranges (rad)
+    pad_radius: float = robot.PAD_RADIUS
+
+    @classmethod
+    def for_model(cls, model: mujoco.MjModel, prefix: str = "") -> ContactEstimator:
+        """The estimator of the tendon hand whose names carry ``prefix`` in ``model``."""
+        layout = TendonLayout.from_model(model, prefix)
+
+        def site(name: str) -> int:
+            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, prefix + name)
+            if i < 0:
+                raise ValueError(f"the model has no site named {prefix + name!r}")
+            return i
+
+        dofs = np.asarray(layout.dof_adr)
+        joints = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, prefix + j) for j in layout.joints
+        ]
+        return cls(
+            layout=layout,
+            finger_dofs=dofs.reshape(len(robot.FINGERS), robot.JOINTS_PER_FINGER),
+            tip_sites=np.array([site(f"{f}_tip") for f in robot.FINGERS]),
+            pad_centres=np.array([site(f"{f}_pad_centre") for f in robot.FINGERS]),
+            damping=model.dof_damping[dofs].copy(),
+            friction=model.dof_frictionloss[dofs].copy(),
+            joint_range=model.jnt_range[joints].copy(),
+        )
+
+    def external_torque(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        sliding: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.float64]:
+        """(16,) joint torques (N m) not explained by the finger's own dynamics (steps 1-2);
+        ``sliding``: each joint's last sliding direction (:class:`FrictionMemory`; default: the
+        present velocity's sign where the joint slides, else no friction)."""
+        dofs = self.layout.dof_adr
+        tau = joint_torques(*self.layout.tensions(data), self.layout.radius)
+        qdot = data.qvel[dofs]
+        if sliding is None:
+            sliding = np.where(np.abs(qdot) > MOVING_SPEED, np.sign(qdot), 0.0)
+        inertial = np.zeros(len(data.qvel))
+        mujoco.mj_mulM(model, data, inertial, data.qacc)
+        return (
+            tau
+            - inertial[dofs]
+            - data.qfrc_bias[dofs]
+            - self.damping * qdot
+            - self.friction * sliding
+        )
+
+    def estimate(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        sliding: NDArray[np.float64] | None = None,
+    ) -> ContactEstimate:
+        """The estimated pad forces in ``data``'s present state (kinematics and sensors must be
+        current, as after ``mj_step`` or ``mj_forward``); ``sliding`` as in
+        :meth:`external_torque`."""
+        tau_ext = self.external_torque(model, data, sliding)
+        q = data.qpos[self.layout.qpos_adr]
+        lo, hi = self.joint_range.T
+        at_limit = (q < lo + LIMIT_MARGIN) | (q > hi - LIMIT_MARGIN)
+        n = len(robot.FINGERS)
+        per = robot.JOINTS_PER_FINGER
+        force, point = np.zeros((n, 3)), np.zeros((n, 3))
+        uncertainty = np.zeros(n)
+        qdot = data.qvel[self.layout.dof_adr]
+        stuck_friction = np.where(np.abs(qdot) > MOVING_SPEED, 0.0, self.friction)
+        jac = np.zeros((3, model.nv))
+        for f in range(n):
+            rows = slice(per * f, per * (f + 1))
+            keep = ~at_limit[rows]
+            body = int(model.site_bodyid[self.tip_sites[f]])
+            tip = data.site_xpos[self.tip_sites[f]]
+            centre = data.site_xpos[self.pad_centres[f]]
+            p = tip.copy()
+            fv = np.zeros(3)
+            solver = np.zeros((3, int(keep.sum())))
+            for _ in range(2):
+                mujoco.mj_jac(model, data, jac, None, p, body)
+                A = jac[:, self.finger_dofs[f]].T[keep]
+                solver = np.linalg.solve(A.T @ A + RIDGE**2 * np.eye(3), A.T)
+                fv = solver @ tau_ext[rows][keep]
+                size = float(np.linalg.norm(fv))
+                if size < 1e-9:
+                    break
+                p = centre + self.pad_radius * fv / size
+            force[f], point[f] = fv, p
+            uncertainty[f] = float(np.linalg.norm(solver, axis=0) @ stuck_friction[rows][keep])
+        return ContactEstimate(
+            normal=np.linalg.norm(force, axis=1),
+            force=force,
+            external_torque=tau_ext,
+            point=point,
+            at_limit=at_limit,
+            uncertainty=uncertainty,
+        )

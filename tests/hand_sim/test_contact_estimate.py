@@ -1,0 +1,168 @@
+"""The tendon hand's fingertip forces estimated from its tendon tensions
+(hand_sim.contact_estimate, issue 24), checked against the touch pads the model keeps as ground
+truth: on a real grip (the balanced top and lateral grasps of the square that
+tests/models/test_utah_mit_hand.py lifts), each pressing pad's estimate is within 15 % or 0.5 N of
+its touch sensor while the hand squeezes, lifts and holds the block; a finger off the block is
+not taken for a touching one; a finger moving freely reads about 0 N; the world's touch() reads
+the estimate for the tendon hand and the pads, unchanged, for the servo hand."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from benchmarks import hand_reachability as reach
+from benchmarks.fingertip_contacts import HandSamples
+from controllers.tendon_control import TendonHandController
+from experiments.physics.cli import DEFAULT_HAND as STUDY_DEFAULT_HAND
+from experiments.physics.cli import HANDS as STUDY_HANDS
+from experiments.physics.report import jobs_for
+from hand_sim import robot
+from hand_sim.assembly import DEFAULT_HAND, HAND_KINDS
+from hand_sim.contact_estimate import (
+    DETECTION_THRESHOLD,
+    ContactEstimate,
+    ContactEstimator,
+    FrictionMemory,
+)
+from hand_sim.errors import HandSimError
+from hand_sim.scene import load_scene
+from hand_sim.telemetry import ESTIMATE_PATH, series_names
+from hand_sim.world import TIMESTEP, TOUCH_PADS, TOUCH_TENDONS, World
+from tests.models.test_utah_mit_hand import HAND, LIFT, LIFT_STEPS, LIFT_TIME, SQUEEZE, _grasp_world
+
+#: The estimate must match a pressing pad's touch sensor within this fraction or this many N.
+REL_TOL, ABS_TOL = 0.15, 0.5
+#: A pad pressing harder than this (N) is compared; one at 0 N is "off the block".
+PRESSING = 1.0
+#: A freely moving finger's estimate stays below this (N) once its joints slide.
+FREE_TOL = 0.5
+
+
+def _touch(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    return np.array([data.sensor(f"hand/{f}_touch").data[0] for f in robot.FINGERS])
+
+
+def _links_touching(model: mujoco.MjModel, data: mujoco.MjData) -> set[str]:
+    """Fingers any of whose links touches something (the pads feel only their own zone)."""
+    out = set()
+    for c in data.contact[: data.ncon]:
+        for g in (c.geom1, c.geom2):
+            name = model.body(model.geom_bodyid[g]).name
+            if name.startswith("hand/") and name[5:7] in robot.FINGERS:
+                out.add(name[5:7])
+    return out
+
+
+@pytest.fixture(scope="module")
+def hand_samples() -> HandSamples:
+    return reach.sample_hand(3000, np.random.default_rng(0), HAND)
+
+
+@pytest.mark.parametrize("kind", ["top", "lateral"])
+def test_the_estimate_matches_the_touch_pads_on_a_grip(hand_samples, kind: str) -> None:
+    """Squeeze 0.5 s, lift 8 cm, hold 1 s; every 0.1 s each pressing pad's estimate is within
+    15 % or 0.5 N of its sensor, and a finger touching nothing is below its guard floor."""
+    _, found = reach.evaluate("square", kind, hand_samples, np.array([0.0]))
+    assert found is not None
+    model, data = _grasp_world(found)
+    drive = TendonHandController.for_model(model, prefix="hand/").drive
+    est = ContactEstimator.for_model(model, "hand/")
+    memory = FrictionMemory()
+    target = found.qpos.copy()
+    for f in range(len(robot.FINGERS)):
+        target[4 * f + 1 : 4 * f + 4] += SQUEEZE
+    lift = model.actuator("lift").id
+    steps_per_sample = round(0.1 / TIMESTEP)
+    compared, checked_free = 0, 0
+
+    def run(seconds: float) -> None:
+        nonlocal compared, checked_free
+        for _ in range(round(seconds / TIMESTEP)):
+            drive.step(model, data, target)
+            memory.update(data.qvel[est.layout.dof_adr])
+            if round(data.time / TIMESTEP) % steps_per_sample:
+                continue
+            e: ContactEstimate = est.estimate(model, data, memory.direction)
+            pads = _touch(model, data)
+            touching = _links_touching(model, data)
+            for f, name in enumerate(robot.FINGERS):
+                if pads[f] > PRESSING:
+                    tol = max(REL_TOL * pads[f], ABS_TOL)
+                    assert abs(e.normal[f] - pads[f]) <= tol, (
+                        kind,
+                        name,
+                        data.time,
+                        e.normal,
+                        pads,
+                    )
+                    compared += 1
+                elif name not in touching:
+                    floor = DETECTION_THRESHOLD + 2.0 * e.uncertainty[f]
+                    assert e.normal[f] <= floor, (kind, name, data.time, e.normal, e.uncertainty)
+                    checked_free += 1
+
+    run(0.5)
+    for k in range(1, LIFT_STEPS + 1):
+        data.ctrl[lift] = LIFT * k / LIFT_STEPS
+        run(LIFT_TIME / LIFT_STEPS)
+    run(1.0)
+    assert compared >= 3 * 20  # at least three pads at every sample
+    assert kind == "top" or checked_free > 0  # the lateral grasp leaves the thumb off
+
+
+@pytest.fixture(scope="module")
+def tendon_world() -> World:
+    return World.build(load_scene("clutter3"), hand="tendon")
+
+
+def test_a_freely_moving_finger_reads_about_zero(tendon_world: World) -> None:
+    """Each finger flexes and extends (0.8 Hz) in free space with the hand's joint loop; once
+    its joints slide, its estimate stays below 0.5 N (the touch pads read 0 throughout)."""
+    world = tendon_world
+    world.reset()
+    q0 = world.hand_qpos()
+    wave = np.tile([0.0, 0.5, 0.5, 0.4], len(robot.FINGERS))
+    worst = np.zeros(len(robot.FINGERS))
+    steps = round(0.02 / TIMESTEP)
+    for k in range(round(2.0 / 0.02)):
+        t = (k + 1) * 0.02
+        world.set_hand_targets(q0 + wave * 0.5 * (1.0 - np.cos(2 * np.pi * 0.8 * t)))
+        world.step(steps)
+        assert np.all(world.touch_sensors() == 0.0)
+        if t > 0.3:
+            sliding = np.abs(world.hand_qvel()).reshape(4, 4)[:, 1:].min(axis=1) > 0.05
+            worst = np.where(sliding, np.maximum(worst, world.touch()), worst)
+    assert np.all(worst < FREE_TOL), worst
+
+
+def test_the_world_reads_the_estimate_for_the_tendon_hand_only(tendon_world: World) -> None:
+    world = tendon_world
+    world.reset()
+    world.step(50)
+    assert world.touch_source == TOUCH_TENDONS
+    np.testing.assert_array_equal(world.touch(), world.contact_estimate().normal)
+    assert world.touch_floor == DETECTION_THRESHOLD
+    assert np.all(world.touch_guard_floor() >= DETECTION_THRESHOLD)
+    servo = World.build(load_scene("single_square"), hand="servo")
+    servo.step(10)
+    assert servo.touch_source == TOUCH_PADS and servo.touch_floor == 0.0
+    np.testing.assert_array_equal(servo.touch(), servo.touch_sensors())
+    np.testing.assert_array_equal(servo.touch_guard_floor(), np.zeros(4))
+    with pytest.raises(HandSimError, match="no tendons"):
+        servo.contact_estimate()
+
+
+def test_the_recording_logs_the_estimate_beside_the_pads_for_the_tendon_hand() -> None:
+    tendon, servo = series_names("tendon"), series_names("servo")
+    for f in robot.FINGERS:
+        assert f"{ESTIMATE_PATH}/{f}" in tendon and f"{ESTIMATE_PATH}/{f}" not in servo
+        assert f"touch/{f}" in tendon and f"touch/{f}" in servo
+
+
+def test_the_physics_study_carries_the_hand_it_is_given() -> None:
+    assert STUDY_HANDS == HAND_KINDS and STUDY_DEFAULT_HAND == DEFAULT_HAND
+    jobs = jobs_for(("square",), 2, 0, hand="tendon")
+    assert jobs and {j.hand for j in jobs} == {"tendon"}
+    assert {j.hand for j in jobs_for(("square",), 2, 0)} == {DEFAULT_HAND}
