@@ -15,10 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import hand_reachability as reach
-from controllers.tendon_control import TendonHandController
+from benchmarks.lift_rig import LIFT_TIME, tendon_lift
+from benchmarks.lift_rig import TENDON_HAND as HAND
 from hand_sim import robot
-from hand_sim.contact_estimate import ContactEstimator, FrictionMemory
-from tests.models.test_utah_mit_hand import HAND, LIFT, LIFT_STEPS, LIFT_TIME, SQUEEZE, _grasp_world
 from tools.tendon_hand_figures import OUT, _pyplot
 
 #: Sampling period (s) of the plotted forces, and the finger colours.
@@ -31,31 +30,14 @@ def grip_forces(kind: str, hand_samples: object) -> dict[str, np.ndarray]:
     _, found = reach.evaluate("square", kind, hand_samples, np.array([0.0]))
     if found is None:
         raise RuntimeError(f"no balanced {kind} grasp of the square found")
-    model, data = _grasp_world(found)
-    drive = TendonHandController.for_model(model, prefix="hand/").drive
-    est = ContactEstimator.for_model(model, "hand/")
-    memory = FrictionMemory()
-    target = found.qpos.copy()
-    for f in range(len(robot.FINGERS)):
-        target[4 * f + 1 : 4 * f + 4] += SQUEEZE
-    lift = model.actuator("lift").id
-    every = round(SAMPLE / model.opt.timestep)
     rows: dict[str, list] = {"time": [], "pads": [], "estimate": []}
 
-    def run(seconds: float) -> None:
-        for k in range(round(seconds / model.opt.timestep)):
-            drive.step(model, data, target)
-            memory.update(data.qvel[est.layout.dof_adr])
-            if k % every == 0:
-                rows["time"].append(data.time)
-                rows["pads"].append([data.sensor(f"hand/{f}_touch").data[0] for f in robot.FINGERS])
-                rows["estimate"].append(est.estimate(model, data, memory.direction).normal)
+    def sample(model: object, data: object, estimate: object) -> None:
+        rows["time"].append(data.time)
+        rows["pads"].append([data.sensor(f"hand/{f}_touch").data[0] for f in robot.FINGERS])
+        rows["estimate"].append(estimate.normal)
 
-    run(0.5)
-    for k in range(1, LIFT_STEPS + 1):
-        data.ctrl[lift] = LIFT * k / LIFT_STEPS
-        run(LIFT_TIME / LIFT_STEPS)
-    run(1.0)
+    tendon_lift(found, SAMPLE, sample)
     return {k: np.asarray(v) for k, v in rows.items()}
 
 

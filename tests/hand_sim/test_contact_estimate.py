@@ -14,7 +14,8 @@ import pytest
 
 from benchmarks import hand_reachability as reach
 from benchmarks.fingertip_contacts import HandSamples
-from controllers.tendon_control import TendonHandController
+from benchmarks.lift_rig import TENDON_HAND as HAND
+from benchmarks.lift_rig import tendon_lift
 from experiments.physics.cli import DEFAULT_HAND as STUDY_DEFAULT_HAND
 from experiments.physics.cli import HANDS as STUDY_HANDS
 from experiments.physics.report import jobs_for
@@ -23,14 +24,11 @@ from hand_sim.assembly import DEFAULT_HAND, HAND_KINDS
 from hand_sim.contact_estimate import (
     DETECTION_THRESHOLD,
     ContactEstimate,
-    ContactEstimator,
-    FrictionMemory,
 )
 from hand_sim.errors import HandSimError
 from hand_sim.scene import load_scene
 from hand_sim.telemetry import ESTIMATE_PATH, series_names
 from hand_sim.world import TIMESTEP, TOUCH_PADS, TOUCH_TENDONS, World
-from tests.models.test_utah_mit_hand import HAND, LIFT, LIFT_STEPS, LIFT_TIME, SQUEEZE, _grasp_world
 
 #: The estimate must match a pressing pad's touch sensor within this fraction or this many N.
 REL_TOL, ABS_TOL = 0.15, 0.5
@@ -66,48 +64,23 @@ def test_the_estimate_matches_the_touch_pads_on_a_grip(hand_samples, kind: str) 
     15 % or 0.5 N of its sensor, and a finger touching nothing is below its guard floor."""
     _, found = reach.evaluate("square", kind, hand_samples, np.array([0.0]))
     assert found is not None
-    model, data = _grasp_world(found)
-    drive = TendonHandController.for_model(model, prefix="hand/").drive
-    est = ContactEstimator.for_model(model, "hand/")
-    memory = FrictionMemory()
-    target = found.qpos.copy()
-    for f in range(len(robot.FINGERS)):
-        target[4 * f + 1 : 4 * f + 4] += SQUEEZE
-    lift = model.actuator("lift").id
-    steps_per_sample = round(0.1 / TIMESTEP)
     compared, checked_free = 0, 0
 
-    def run(seconds: float) -> None:
+    def check(model: mujoco.MjModel, data: mujoco.MjData, e: ContactEstimate) -> None:
         nonlocal compared, checked_free
-        for _ in range(round(seconds / TIMESTEP)):
-            drive.step(model, data, target)
-            memory.update(data.qvel[est.layout.dof_adr])
-            if round(data.time / TIMESTEP) % steps_per_sample:
-                continue
-            e: ContactEstimate = est.estimate(model, data, memory.direction)
-            pads = _touch(model, data)
-            touching = _links_touching(model, data)
-            for f, name in enumerate(robot.FINGERS):
-                if pads[f] > PRESSING:
-                    tol = max(REL_TOL * pads[f], ABS_TOL)
-                    assert abs(e.normal[f] - pads[f]) <= tol, (
-                        kind,
-                        name,
-                        data.time,
-                        e.normal,
-                        pads,
-                    )
-                    compared += 1
-                elif name not in touching:
-                    floor = DETECTION_THRESHOLD + 2.0 * e.uncertainty[f]
-                    assert e.normal[f] <= floor, (kind, name, data.time, e.normal, e.uncertainty)
-                    checked_free += 1
+        pads = _touch(model, data)
+        touching = _links_touching(model, data)
+        for f, name in enumerate(robot.FINGERS):
+            if pads[f] > PRESSING:
+                tol = max(REL_TOL * pads[f], ABS_TOL)
+                assert abs(e.normal[f] - pads[f]) <= tol, (kind, name, data.time, e.normal, pads)
+                compared += 1
+            elif name not in touching:
+                floor = DETECTION_THRESHOLD + 2.0 * e.uncertainty[f]
+                assert e.normal[f] <= floor, (kind, name, data.time, e.normal, e.uncertainty)
+                checked_free += 1
 
-    run(0.5)
-    for k in range(1, LIFT_STEPS + 1):
-        data.ctrl[lift] = LIFT * k / LIFT_STEPS
-        run(LIFT_TIME / LIFT_STEPS)
-    run(1.0)
+    tendon_lift(found, 0.1, check)
     assert compared >= 3 * 20  # at least three pads at every sample
     assert kind == "top" or checked_free > 0  # the lateral grasp leaves the thumb off
 

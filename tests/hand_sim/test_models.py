@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from benchmarks import hand_reachability as reach
-from controllers.grasp import paper_object
+from benchmarks.lift_rig import LIFT, LIFT_STEPS, LIFT_TIME, SERVO_HAND, SQUEEZE, lift_rig
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 MODEL_FILES = ("hand.xml", "hand_scene.xml", "arm.xml", "table.xml")
@@ -181,63 +181,11 @@ def test_touch_sensor_ignores_contacts_away_from_the_tip() -> None:
 
 
 # --- a balanced grasp holds a block ----------------------------------------------------------
-BLOCK_MASS = 0.3
-BLOCK_FRICTION = 0.8  # wood
-SQUEEZE = 0.15  # rad added to every flexion target past the contact configuration
-LIFT = 0.08  # m, raised in LIFT_TIME (s) in LIFT_STEPS ramps
-LIFT_TIME, LIFT_STEPS = 0.5, 25
 
 
 def _grasp_world(found: reach.GraspFound, poly_name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The hand on a vertical lift, turned so that the prism the reachability search placed stands
-    upright on a floor, as a free 0.3 kg block; hand servos at the found configuration + SQUEEZE."""
-    pl = found.placement
-    world = mujoco.MjSpec()
-    world.option.timestep = 0.002
-    world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    world.option.impratio = 10
-    height = 1.0
-    carriage = world.worldbody.add_body(name="carriage", pos=[0, 0, height])
-    carriage.add_joint(
-        name="lift", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=1.0, damping=50
-    )
-    carriage.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], mass=2.0, contype=0, conaffinity=0
-    )
-    # World from hand: the prism axis points down (top grasps: the palm faces down).
-    flip = np.diag([1.0, -1.0, -1.0])
-    world_from_hand = flip @ np.stack([pl.e1, pl.e2, pl.axis])
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, world_from_hand.ravel())
-    site = carriage.add_site(name="carriage_mount", quat=quat.tolist())
-    hand = mujoco.MjSpec.from_file(str(MODELS / "hand.xml"))
-    site.attach_body(hand.body("palm"), "hand/", "")
-    lift = world.add_actuator(name="lift", target="lift", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    lift.set_to_position(kp=20000, kv=600)
-    z0, z1 = pl.axial_range
-    pos = world_from_hand @ (pl.origin + pl.axis * 0.5 * (z0 + z1)) + np.array([0, 0, height])
-    poly = paper_object(poly_name)
-    half = 0.5 * (z1 - z0)
-    verts = np.concatenate([np.c_[poly.vertices, np.full(poly.n_edges, z)] for z in (-half, half)])
-    world.add_mesh(name="prism", uservert=verts.ravel().tolist())
-    mujoco.mju_mat2Quat(quat, flip.ravel())
-    block = world.worldbody.add_body(name="block", pos=pos.tolist(), quat=quat.tolist())
-    block.add_freejoint()
-    block.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_MESH,
-        meshname="prism",
-        mass=BLOCK_MASS,
-        friction=[BLOCK_FRICTION, 0.005, 0.0001],
-        condim=4,
-    )
-    world.worldbody.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.1], pos=[0, 0, pos[2] - half]
-    )
-    model = world.compile()
-    data = mujoco.MjData(model)
-    qadr = [model.joint(f"hand/{f}j{i}").qposadr[0] for f in FINGERS for i in range(4)]
-    data.qpos[qadr] = found.qpos
+    """benchmarks.lift_rig with hand.xml; hand servos at the found configuration + SQUEEZE."""
+    model, data = lift_rig(found, SERVO_HAND, poly_name)
     target = found.qpos.copy()
     for f in range(4):
         target[4 * f + 1 : 4 * f + 4] += SQUEEZE

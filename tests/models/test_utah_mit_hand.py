@@ -15,12 +15,12 @@ import pytest
 from dm_control import mjcf
 
 from benchmarks import hand_reachability as reach
-from controllers.grasp import paper_object
+from benchmarks.lift_rig import LIFT, LIFT_STEPS, LIFT_TIME, SQUEEZE, TENDON_HAND, lift_rig
 from controllers.tendon_control import TendonHandController, TendonLayout
 from hand_sim import robot
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
-HAND = MODELS / "utah_mit_hand" / "utah_mit_hand.xml"
+HAND = TENDON_HAND
 SCENE = MODELS / "utah_mit_hand" / "scene.xml"
 SIDES = ("flex", "ext")
 #: The model's stated parameters (README.md): pulley radius (m), maximum tension (N), joint
@@ -229,59 +229,6 @@ def test_it_attaches_to_the_arm_as_hand_sim_attaches_hand_xml() -> None:
 
 
 # --- the servo hand's balanced grasp, held by the tendons -------------------------------------
-BLOCK_MASS, BLOCK_FRICTION = 0.3, 0.8  # as tests/hand_sim/test_models.py: a wood block
-SQUEEZE = 0.15  # rad added to every flexion target past the contact configuration
-LIFT, LIFT_TIME, LIFT_STEPS = 0.08, 0.5, 25  # m raised in LIFT_TIME (s), in LIFT_STEPS ramps
-
-
-def _grasp_world(found: reach.GraspFound) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """tests/hand_sim/test_models.py's lift rig with this hand: the hand on a servoed vertical
-    slide, turned so that the square prism the reachability search placed stands upright on a
-    floor as a free 0.3 kg block; the hand at the found configuration."""
-    pl = found.placement
-    world = mujoco.MjSpec()
-    world.option.timestep = 0.002
-    world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    world.option.impratio = 10
-    carriage = world.worldbody.add_body(name="carriage", pos=[0, 0, 1.0])
-    carriage.add_joint(
-        name="lift", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=1.0, damping=50
-    )
-    carriage.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], mass=2.0, contype=0, conaffinity=0
-    )
-    flip = np.diag([1.0, -1.0, -1.0])  # the prism axis points down
-    world_from_hand = flip @ np.stack([pl.e1, pl.e2, pl.axis])
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, world_from_hand.ravel())
-    site = carriage.add_site(name="carriage_mount", quat=quat.tolist())
-    site.attach_body(mujoco.MjSpec.from_file(str(HAND)).body("palm"), "hand/", "")
-    lift = world.add_actuator(name="lift", target="lift", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    lift.set_to_position(kp=20000, kv=600)
-    z0, z1 = pl.axial_range
-    pos = world_from_hand @ (pl.origin + pl.axis * 0.5 * (z0 + z1)) + np.array([0, 0, 1.0])
-    poly, half = paper_object("square"), 0.5 * (z1 - z0)
-    verts = np.concatenate([np.c_[poly.vertices, np.full(poly.n_edges, z)] for z in (-half, half)])
-    world.add_mesh(name="prism", uservert=verts.ravel().tolist())
-    mujoco.mju_mat2Quat(quat, flip.ravel())
-    block = world.worldbody.add_body(name="block", pos=pos.tolist(), quat=quat.tolist())
-    block.add_freejoint()
-    block.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_MESH,
-        meshname="prism",
-        mass=BLOCK_MASS,
-        friction=[BLOCK_FRICTION, 0.005, 0.0001],
-        condim=4,
-    )
-    world.worldbody.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.1], pos=[0, 0, pos[2] - half]
-    )
-    model = world.compile()
-    data = mujoco.MjData(model)
-    data.qpos[[model.joint(f"hand/{j}").qposadr[0] for j in robot.HAND_JOINTS]] = found.qpos
-    mujoco.mj_forward(model, data)
-    return model, data
 
 
 @pytest.mark.parametrize("kind", ["top", "lateral"])
@@ -293,7 +240,7 @@ def test_the_balanced_grasp_lifts_a_wood_block_on_tendons(kind: str) -> None:
     hs = reach.sample_hand(3000, np.random.default_rng(0), HAND)
     best, found = reach.evaluate("square", kind, hs, np.array([0.0]))
     assert found is not None and best[0] < 0.2
-    model, data = _grasp_world(found)
+    model, data = lift_rig(found, HAND)
     ctrl = TendonHandController.for_model(model, prefix="hand/")
     target = found.qpos.copy()
     for f in range(len(robot.FINGERS)):
