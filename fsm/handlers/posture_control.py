@@ -73,9 +73,9 @@ def posture_control(ep: Episode) -> Step:
             pad_centres=pre_pads,
             qpos=found.qpos,
         ).hand_q
-        # a straight approach that meets a neighbour would push it (seeds 117, 124, 142 of the
-        # 200 random scenes moved one 13-16 cm): take an approach that clears the perceived
-        # world instead (the fingers wider open), or give this posture up
+        # a straight approach that meets a neighbour would push it: take an approach that clears
+        # the perceived world instead (the fingers wider open), or give this posture up
+        # (docs/grasp3d_physics.md: the neighbours it pushed, and what the check changed)
         touches = approach_touches(block_site(ep), found.arm_q, hand_pre)
         if not touches:
             reposition(block_site(ep), found.arm_q, hand_pre)
