@@ -10,6 +10,7 @@ perceived block in place of the real one), the perceived block, and :class:`Moti
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import mujoco
@@ -133,6 +134,29 @@ def move_arm_and_hand(
     world.step(round(0.3 / world.model.opt.timestep))
 
 
+def _approach_steps(p: MotionParams) -> NDArray[np.float64]:
+    """The distances (m) along the approach axis the straight approach is checked at:
+    ``approach_step`` to ``backoff``."""
+    return np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step)
+
+
+def backed_out(
+    checker: CollisionChecker, q: NDArray[np.float64], axis: NDArray[np.float64], backs: NDArray
+) -> Iterator[tuple[float, NDArray[np.float64] | None]]:
+    """The arm postures with the palm moved ``-back * axis`` from where ``q`` puts it, orientation
+    kept, for each of ``backs`` in order (each IK started from the one before): (back, posture),
+    and (back, None) once the IK finds none, which ends the walk."""
+    palm, R = checker.palm_pose(q)
+    q = np.asarray(q, dtype=float)
+    for back in backs:
+        ik = checker.solve_ik(palm - back * axis, R, q)
+        if not ik.found:
+            yield float(back), None
+            return
+        q = ik.q
+        yield float(back), q
+
+
 def clear_backoff(site: BlockSite) -> float:
     """How far (m, at most ``backoff``, in ``approach_step`` steps) the palm backs out along the
     approach axis from where the arm is, the hand held as it is, without a link touching the
@@ -147,13 +171,11 @@ def clear_backoff(site: BlockSite) -> float:
     q = world.arm_qpos()
     if checker.collides(q):  # already touching (a finger on the block): the full back-out
         return p.backoff
-    palm, R = checker.palm_pose(q)
     clear = 0.0
-    for back in np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step):
-        ik = checker.solve_ik(palm - back * site.axis, R, q)
-        if not ik.found or checker.collides(ik.q):
+    for back, out in backed_out(checker, q, site.axis, _approach_steps(p)):
+        if out is None or checker.collides(out):
             break
-        clear, q = float(back), ik.q
+        clear = back
     return clear
 
 
@@ -210,16 +232,12 @@ def approach_clear(
     checker = CollisionChecker(
         site.world, model=site.planning, hand_q=hand_q, clearance=p.approach_clearance
     )
-    palm, R = checker.palm_pose(arm_q)
-    q = np.asarray(arm_q, dtype=float)
-    if checker.collides(q):
+    if checker.collides(arm_q):
         return False
-    for back in np.arange(p.approach_step, p.backoff + 1e-9, p.approach_step):
-        ik = checker.solve_ik(palm - back * site.axis, R, q)
-        if not ik.found or checker.collides(ik.q):
-            return False
-        q = ik.q
-    return True
+    return all(
+        q is not None and not checker.collides(q)
+        for _, q in backed_out(checker, arm_q, site.axis, _approach_steps(p))
+    )
 
 
 def approach_touches(
@@ -232,22 +250,18 @@ def approach_touches(
     out. Empty when the approach passes clear of every neighbour."""
     p = site.params
     checker = CollisionChecker(site.world, model=site.planning, hand_q=hand_q, clearance=0.0)
-    palm, R = checker.palm_pose(arm_q)
     target = site.world.model.body(site.block_body).name
     touched: list[str] = []
-    q = np.asarray(arm_q, dtype=float)
-    for back in np.arange(0.0, p.backoff + 1e-9, p.approach_step):
-        ik = checker.solve_ik(palm - back * site.axis, R, q)
-        if not ik.found:
+    backs = np.concatenate([[0.0], _approach_steps(p)])
+    for _, q in backed_out(checker, arm_q, site.axis, backs):
+        if q is None:
             break
-        q = ik.q
         for c in checker.contacts(q, clearance=0.0):
             for name in (c.geom1, c.geom2):
                 robotic = name.startswith((robot.HAND_PREFIX, robot.ARM_PREFIX))
-                own = name.removesuffix(GEOM_SUFFIX) == target
-                if robotic or own or name == PERCEIVED_GEOM or "table" in name:
-                    continue
                 block = name.removesuffix(GEOM_SUFFIX)
+                if robotic or block == target or name == PERCEIVED_GEOM or "table" in name:
+                    continue
                 if block not in touched:
                     touched.append(block)
     return tuple(touched)
