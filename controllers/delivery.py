@@ -163,8 +163,8 @@ def plan_delivery(
     )
     shift = np.array([*(place - b0[:2]), carry_z - b0[2]])
     drop = np.array([0.0, 0.0, down_z - carry_z])
-    high = down = None
     turns = [0.0, turn, *(turn + t for t in SET_DOWN_TURNS)]
+    first_failure: DeliveryPlan | None = None
     for R in (_rotate_z(t) @ R0 for t in turns):
         # the palm moves so that the block's centre lands above the place point
         p_high = b0 + shift + R @ R0.T @ (p0 - b0)
@@ -174,19 +174,22 @@ def plan_delivery(
         ok = h.found and d.found and not checker.collides(h.q)
         # the set-down may graze the table only in its last 2 * clearance
         near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
-        if (
+        if not (
             ok
             and near.found
             and first_collision(checker, np.stack([h.q, near.q])) is None
             and first_collision(descent, np.stack([h.q, d.q])) is None
         ):
-            high, down = h.q, d.q
+            continue
+        # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
+        # a tall neighbour at the start) gives way to the next one
+        transit = plan_arm_path(checker, start, h.q, resolution=resolution)
+        if transit.found:
+            down = d.q
             break
-    if high is None or down is None:
-        return fail("no collision-free posture above the place point")
-    transit = plan_arm_path(checker, start, high, resolution=resolution)
-    if not transit.found:
-        return fail(f"transit: {transit.reason}", transit)
+        first_failure = first_failure or fail(f"transit: {transit.reason}", transit)
+    else:
+        return first_failure or fail("no collision-free posture above the place point")
     path = dedupe_path(np.vstack([*lead[:-1], transit.path, down[None]]))
     block_goal, _ = checker.carried_pose(down)
     return DeliveryPlan(True, path, transit, block_goal, "reached goal")

@@ -19,6 +19,7 @@ import numpy as np
 from fsm.context import (
     APPROACH_CHOICES,
     CONTROLLERS,
+    DEFAULT_GRASP_MODEL,
     GRASP_MODELS,
     HANDS,
     PLACE_FALLBACKS,
@@ -67,7 +68,7 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
     )
     ap.add_argument(
         "--model",
-        default="planar",
+        default=DEFAULT_GRASP_MODEL,
         choices=GRASP_MODELS,
         help="grasp model of a top grasp: planar (the paper's controllers, contacts at the "
         "fingertips' height) or 3d (contacts with heights, set by moment closure and the task; "

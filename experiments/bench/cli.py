@@ -90,6 +90,8 @@ SETTING_DEFAULTS = {
     "place_fallback": "a free slot, unreported (old rule)",
     "hand": "servo",
 }
+#: The command-line flag of a setting whose name is not the flag's.
+FLAG_OF = {"grasp_model": "model"}
 #: Most episodes one command may ask for.
 MAX_EPISODES = 100_000
 MAX_WORKERS = 1024
@@ -249,7 +251,7 @@ def _check_resume(out: Path, settings: dict[str, Any], resume: bool) -> list[dic
         differ = [k for k in RESUME_KEYS if saved.get(k, SETTING_DEFAULTS.get(k)) != settings[k]]
         if differ:
             was = ", ".join(
-                f"--{k.replace('_', '-')} {saved.get(k, SETTING_DEFAULTS.get(k))}"
+                f"--{FLAG_OF.get(k, k.replace('_', '-'))} {saved.get(k, SETTING_DEFAULTS.get(k))}"
                 if saved.get(k, SETTING_DEFAULTS.get(k)) is not None
                 else f"no --{k}"
                 for k in differ

@@ -61,7 +61,8 @@ class Job:
     blocks: int | None = None  #: blocks of a random scene (None: the generator's default)
     controller: str = "pi"
     approach: str = "auto"
-    grasp_model: str = "planar"  #: "planar" or "3d" (fsm.run --model)
+    #: "planar" or "3d" (fsm.run --model); None: fsm.run's default
+    grasp_model: str | None = None
     models: str | None = None  #: trained models folder (None: the shipped ones)
     keep_rrd: bool = False  #: return the recording of a success too
     cycles: int | None = 1  #: blocks picked one after another (None: clear the table)
@@ -100,7 +101,7 @@ def run_job(job: Job) -> JobResult:
     An exception other than Ctrl-C outside the task cycle's states (the episode names any inside
     them) does not stop the bench: the line then says ``failure = "episode crashed"`` with the
     exception in ``failure_detail`` and ``traceback``."""
-    from fsm.context import EpisodeOptions, out_paths
+    from fsm.context import DEFAULT_GRASP_MODEL, EpisodeOptions, out_paths
     from fsm.layout import episode_scene
     from fsm.machine import run_episode
 
@@ -111,7 +112,7 @@ def run_job(job: Job) -> JobResult:
             blocks=job.blocks,
             controller=job.controller,
             approach=job.approach,
-            grasp_model=job.grasp_model,
+            grasp_model=job.grasp_model or DEFAULT_GRASP_MODEL,
             cycles=job.cycles,
             place_fallback=job.place_fallback,
             out=Path(tmp),

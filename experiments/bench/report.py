@@ -142,6 +142,8 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
     if settings.get("blocks"):
         parts.append(f"--blocks {settings['blocks']}")
     parts += [f"--controller {settings['controller']}", f"--approach {settings['approach']}"]
+    # always written: the default grasp model changed (planar before, 3-D since)
+    parts.append(f"--model {settings.get('grasp_model', 'planar')}")
     if settings.get("cycles", "1") != "1":
         parts.append(f"--cycles {settings['cycles']}")
     if settings.get("place_fallback", "none") != "none":

@@ -303,8 +303,13 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
         (err,) = capsys.readouterr().err.strip().splitlines()
         assert message in err, err
     assert (tmp_path / "results.jsonl").read_bytes() == before
+    # a folder of the planar model is not resumed on the default (3-D) model, named by its flag
+    assert bench.main([*QUICK, "--seeds", "0:10", "--resume", "--out", str(tmp_path)]) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "--model planar" in err, err
     # everything asked for is done: nothing runs, the report is rebuilt
-    assert bench.main([*QUICK, "--seeds", "0:10", "--resume", "--out", str(tmp_path)]) == 0
+    argv = [*QUICK, "--seeds", "0:10", "--resume", "--model", "planar", "--out", str(tmp_path)]
+    assert bench.main(argv) == 0
     assert (tmp_path / "results.jsonl").read_bytes() == before
     check_report(tmp_path)
 
