@@ -23,6 +23,7 @@ MEASURES: dict[str, str] = {
     "sg3d": "3-D S_G (null grasp)",
     "worst_sg3d": "3-D S_G, worst test task",
     "predicted_turn": "grasp compliance, worst predicted turn",
+    "force_demand": "measured-force demand, worst test load",
 }
 
 
@@ -127,7 +128,7 @@ def measures_section(results: list[dict], models: tuple[str, ...]) -> tuple[list
 
 
 def measures_figure(results: list[dict], path: Path) -> None:
-    """The three measures' pooled ROC curves in one plot."""
+    """The measures' pooled ROC curves in one plot."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -42,6 +42,7 @@ from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from controllers.transport import LIFT_HEIGHT, lift
 from experiments.physics.compliance import grasp_compliance
+from experiments.physics.force_demand import held_force_demand
 from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
 from experiments.physics.measures import grasp_measures, held_contacts
 from experiments.physics.synthesis import grasp_depths, synthesize
@@ -352,6 +353,11 @@ def test_grasp(
                 out.measures["predicted_turn"] = round(compliance.worst_turn, 6)
                 out.measures["predicted_stage"] = compliance.worst_stage
                 out.measures["saturated_servos"] = compliance.saturated
+            yaw = sw.target.yaw
+            demand = held_force_demand(points, sw.target.polygon, sq.touch, weight, yaw)
+            d = demand.demand
+            out.measures["force_demand"] = None if d is None else round(d, 6)
+            out.measures["force_demand_stage"] = demand.worst_stage
             out.measures["points"] = np.round(points, 5).tolist()
         physical_test(sw, grip, out, snapshot)
     except SimulationError as e:

@@ -98,12 +98,21 @@ def test_quick_run_covers_every_grasp_and_judges_by_the_measured_motion(quick) -
     assert (out / "roc.png").stat().st_size > 1000
     assert (out / "roc_measures.png").stat().st_size > 1000
     assert "### Model: 3d" in report and "3-D S_G, worst test task" in report
-    assert set(summary["measures"]) == {"planar_sg", "sg3d", "worst_sg3d", "predicted_turn"}
+    assert set(summary["measures"]) == {
+        "planar_sg",
+        "sg3d",
+        "worst_sg3d",
+        "predicted_turn",
+        "force_demand",
+    }
     for r in tested:
         if r["measures"]:  # every finger touches: the compliance prediction exists
             assert 0.0 <= r["measures"]["predicted_turn"] <= np.pi
             assert r["measures"]["predicted_stage"] in ("hang", "+x", "-x", "+y", "-y", "+z", "-z")
             assert np.shape(r["measures"]["points"]) == (4, 3)
+            demand = r["measures"]["force_demand"]
+            assert demand is None or demand > 0.0
+            assert r["measures"]["force_demand_stage"] in ("hang", "+x", "-x", "+y", "-y", "-z")
 
 
 @pytest.mark.e2e
