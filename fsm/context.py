@@ -56,7 +56,7 @@ class EpisodeOptions:
     controller: str = "pi"
     approach: str = "auto"
     #: "planar" (the paper's controllers, contacts at the fingertips' height) or "3d" (contacts
-    #: with heights: controllers.grasp.session3d for a top grasp, session_lateral for a lateral)
+    #: with heights, controllers.grasp.session3d) for a top grasp
     grasp_model: str = DEFAULT_GRASP_MODEL
     cycles: int | None = 1  #: None: all blocks
     out: Path = Path("runs/clutter3-0")

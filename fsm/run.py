@@ -70,9 +70,9 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
         "--model",
         default=DEFAULT_GRASP_MODEL,
         choices=GRASP_MODELS,
-        help="grasp model: planar (the paper's controllers, contacts at the fingertips' "
-        "height) or 3d (contacts with heights: a top grasp's set by moment closure and the task, "
-        "a lateral grasp's those its fingers take; docs/grasp3d_physics.md)",
+        help="grasp model of a top grasp: planar (the paper's controllers, contacts at the "
+        "fingertips' height) or 3d (contacts with heights, set by moment closure and the task; "
+        "docs/grasp3d_physics.md)",
     )
 
 

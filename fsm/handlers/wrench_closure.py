@@ -34,10 +34,11 @@ def synthesis_for(
     on a block tall enough for the band, 3-D from the contacts' heights ``tips_z`` (world).
     A top grasp's heights move in the band :data:`~controllers.fine_reach.TOP_GRASP_DEPTHS`
     below the top and above the table margin, the common height set by the task (the perceived
-    weight over the grip force; the pushes along the world's axes). A lateral grasp's contacts
-    stay on their arcs at the heights the fingers take (the pre-shape's, then each reach
-    test's; :class:`~controllers.grasp.session_lateral.LateralSynthesis3D`), scored with the
-    weight's task."""
+    weight over the grip force; the pushes along the world's axes). A lateral grasp is planar,
+    its contacts kept on their arcs; with ``TaskConfig.lateral_grasp_3d`` (off by default,
+    fsm.config says why) it is 3-D, the contacts on their arcs at the heights the fingers take
+    (the pre-shape's, then each reach test's;
+    :class:`~controllers.grasp.session_lateral.LateralSynthesis3D`), scored with the weight."""
     separation = {"min_separation": CONTACT_SEPARATION, "separation_offset": robot.PAD_RADIUS}
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
@@ -48,7 +49,11 @@ def synthesis_for(
         # its side's arc; in 3-D at the height its finger takes (the hand's shape sets it)
         arcs = arcs_of(side_arcs(ep), np.asarray(theta, dtype=float))
         lateral_top = height - TOP_MARGIN
-        if ep.options.grasp_model != "3d" or lateral_top < BOTTOM_MARGIN:
+        if (
+            ep.options.grasp_model != "3d"
+            or not ep.config.lateral_grasp_3d
+            or lateral_top < BOTTOM_MARGIN
+        ):
             return GraspSynthesis(
                 ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
             )
