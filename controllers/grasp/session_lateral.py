@@ -20,6 +20,10 @@ with the task of the block hanging in the hand under its weight
 planar ones (FC on the Gaussian sphere and MC in theta do not see the heights,
 :mod:`controllers.grasp.trials3d`), so with all heights equal the contacts move exactly as the
 planar lateral grasp's (tested).
+
+The task cycle runs it only with ``fsm.config.TaskConfig.lateral_grasp_3d`` (off by default): at
+the heights a lateral hand's fingers take on single_rectangle, its S_G is 0.99-2.24, above
+Eq. 13's 0.4 (docs/task_cycle.md, "The lateral grasp in 3-D").
 """
 
 from __future__ import annotations
