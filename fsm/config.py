@@ -40,6 +40,15 @@ class TaskConfig:
     #: 4 mm, 5 of 10 with SQUEEZE_REACH's 6 mm (the fingers on the far contacts cannot reach 6 mm
     #: into the face).
     lateral_squeeze_reach: float = 0.004
+    #: With ``--model 3d``, a lateral grasp's Wrench Closure runs the 3-D lateral controller
+    #: (controllers.grasp.session_lateral: contacts on their arcs at the heights the fingers
+    #: take, S_G in 3-D with the weight) instead of the planar one. Off: at the heights a
+    #: lateral hand's fingers take (mf 4.9-6.0 cm above the block's centre, the thumb 4.4-6.9
+    #: cm below it) the 3-D S_G is 0.99-2.24 on the nine single_rectangle grasps of seeds 0-9
+    #: that the planar lateral grasp delivers, above Eq. 13's 0.4: every one would fail
+    #: Wrench Closure, although all nine hold and are delivered with the squeeze's 3-D shares
+    #: (docs/task_cycle.md, "The lateral grasp in 3-D").
+    lateral_grasp_3d: bool = False
     #: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned (rad)
     #: for each. Four, not two: over random scenes 0-29 (pi) the third and fourth regrasps
     #: delivered the three episodes whose contacts stayed out of reach after two (two hexagons,

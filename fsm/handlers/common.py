@@ -65,7 +65,7 @@ def block_site(ep: Episode) -> BlockSite:
 def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
     """The reach test's inputs for this cycle's block; ``sampled``: the hand IK starts from the
     episode's sampled finger postures (always in a palm-pose search; in Wrench Closure's checks
-    only for a lateral grasp). A 3-D grasp's contacts are taken at their own heights."""
+    only for a lateral grasp). A top 3-D grasp's contacts are taken at their own heights."""
     lateral = slides(ep)
     return ReachQuery(
         ep.world,
@@ -75,7 +75,9 @@ def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
         slide=lateral,
         samples=finger_samples(ep) if sampled or lateral else None,
         squeeze=squeeze_reach(ep),
-        heights=contact_heights(ep),
+        # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp
+        # then takes those heights); a top 3-D grasp's fingers go to its contacts' heights
+        heights=None if lateral else contact_heights(ep),
     )
 
 

@@ -9,9 +9,17 @@ from numpy.typing import NDArray
 from controllers.fine_reach import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
 from controllers.grasp.session import GraspSynthesis
 from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.session_lateral import LateralSynthesis3D
 from controllers.grasp.trials3d import HeightBand
 from controllers.grip import GRIP_FORCE
-from controllers.hand_reach import CONTACT_SEPARATION, MIN_PAD_SPACING, reachable_contacts
+from controllers.hand_reach import (
+    BOTTOM_MARGIN,
+    CONTACT_SEPARATION,
+    MIN_PAD_SPACING,
+    TOP_MARGIN,
+    FingerContacts,
+    reachable_contacts,
+)
 from fsm.context import Episode
 from fsm.handlers.common import arcs_of, contact_points, reach_query, side_arcs, slides
 from fsm.recorder_protocol import SynthesisRecord
@@ -22,25 +30,47 @@ from hand_sim import robot
 def synthesis_for(
     ep: Episode, theta: NDArray[np.float64], tips_z: NDArray[np.float64]
 ) -> GraspSynthesis | GraspSynthesis3D:
-    """This cycle's grasp controller from contacts ``theta``: planar, or, for a top grasp with
-    ``--model 3d`` on a block tall enough for the band, 3-D from the fingertips' heights
-    ``tips_z`` (world), in the band :data:`~controllers.fine_reach.TOP_GRASP_DEPTHS` below the
-    top and above the table margin, the common height set by the task (the perceived weight
-    over the grip force; the pushes along the world's axes)."""
+    """This cycle's grasp controller from contacts ``theta``: planar, or, with ``--model 3d``
+    on a block tall enough for the band, 3-D from the contacts' heights ``tips_z`` (world).
+    A top grasp's heights move in the band :data:`~controllers.fine_reach.TOP_GRASP_DEPTHS`
+    below the top and above the table margin, the common height set by the task (the perceived
+    weight over the grip force; the pushes along the world's axes). A lateral grasp is planar,
+    its contacts kept on their arcs; with ``TaskConfig.lateral_grasp_3d`` (off by default,
+    fsm.config says why) it is 3-D, the contacts on their arcs at the heights the fingers take
+    (the pre-shape's, then each reach test's;
+    :class:`~controllers.grasp.session_lateral.LateralSynthesis3D`), scored with the weight."""
     separation = {"min_separation": CONTACT_SEPARATION, "separation_offset": robot.PAD_RADIUS}
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
     high = height - TOP_GRASP_DEPTHS[0]
+    com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
     if slides(ep):
         # a lateral hand takes only the faces beside its approach axis: each contact stays on
-        # its side's arc
+        # its side's arc; in 3-D at the height its finger takes (the hand's shape sets it)
         arcs = arcs_of(side_arcs(ep), np.asarray(theta, dtype=float))
-        return GraspSynthesis(
-            ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
+        lateral_top = height - TOP_MARGIN
+        if (
+            ep.options.grasp_model != "3d"
+            or not ep.config.lateral_grasp_3d
+            or lateral_top < BOTTOM_MARGIN
+        ):
+            return GraspSynthesis(
+                ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
+            )
+        return LateralSynthesis3D(
+            ep.target.polygon,
+            height,
+            HeightBand(BOTTOM_MARGIN, lateral_top),
+            ep.composer,
+            theta,
+            np.asarray(tips_z, dtype=float) - com_z,
+            ep.rng,
+            arcs=arcs,
+            load=ep.expected_load / GRIP_FORCE,
+            **separation,
         )
     if ep.options.grasp_model != "3d" or low > high:
         return GraspSynthesis(ep.target.polygon, ep.composer, theta, ep.rng, **separation)
-    com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
     return GraspSynthesis3D(
         ep.target.polygon,
         height,
@@ -66,10 +96,13 @@ def wrench_closure(ep: Episode) -> Step:
     if ep.synthesis is None:
         tips = world.fingertip_positions()
         start = project_to_surface(ep.target, tips, table_z=table_z).theta
+        start_z = tips[:, 2]
         if slides(ep) and ep.preshape_contacts is not None:
-            # a lateral grasp starts from the pre-shape's contacts, which the hand reaches
+            # a lateral grasp starts from the pre-shape's contacts, which the hand reaches, at
+            # the heights its fingers took there
             start = ep.preshape_contacts.theta.copy()
-        ep.synthesis = synthesis_for(ep, start, tips[:, 2])
+            start_z = ep.preshape_contacts.points[:, 2].copy()
+        ep.synthesis = synthesis_for(ep, start, start_z)
         ep.last_reachable = None
         if slides(ep):
             _remember_if_reachable(ep)
@@ -111,6 +144,7 @@ def wrench_closure(ep: Episode) -> Step:
         ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
         if reach.reachable and slides(ep):
             ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
+            _take_heights(ep, contacts)
         if not reach.reachable and _last_reachable_grasp(ep):
             theta, ep.contacts, ep.reach, at = ep.last_reachable
             stopped = (
@@ -153,9 +187,18 @@ def wrench_closure(ep: Episode) -> Step:
     return Step(
         State.GRASP_OBJECT,
         ("converged" if syn.converged else "stopped")
-        + f" in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
+        + f" in {syn.steps} steps, S_G {score.s_g:.3f}{_lateral_3d(ep)}, reachable "
         f"(pads {np.degrees(ep.reach.pad_angle).round(0).tolist()} deg off their faces)" + stopped,
     )
+
+
+def _lateral_3d(ep: Episode) -> str:
+    """For the log: a lateral 3-D grasp's S_G is in 3-D with the weight, at these heights."""
+    syn = ep.synthesis
+    if not isinstance(syn, LateralSynthesis3D):
+        return ""
+    above = (0.5 * (ep.prism.top - ep.prism.bottom) + syn.heights) * 100.0
+    return f" (3-D, the weight; contacts {above.round(1).tolist()} cm above its base)"
 
 
 def _remember_if_reachable(ep: Episode) -> None:
@@ -176,6 +219,18 @@ def _remember_if_reachable(ep: Episode) -> None:
     )
     if reach.reachable:
         ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
+        _take_heights(ep, contacts)
+
+
+def _take_heights(ep: Episode, contacts: FingerContacts) -> None:
+    """A lateral 3-D grasp takes the heights the fingers took in a reach test (each contact's,
+    in the controller's order) for its next steps and its S_G."""
+    syn = ep.synthesis
+    if not isinstance(syn, LateralSynthesis3D):
+        return
+    z = np.empty(len(contacts.contact_of_finger))
+    z[list(contacts.contact_of_finger)] = contacts.points[:, 2]
+    syn.set_heights(z - 0.5 * (ep.prism.bottom + ep.prism.top))
 
 
 def _last_reachable_grasp(ep: Episode) -> bool:

@@ -323,6 +323,24 @@ def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path)
 
 
 @pytest.mark.e2e
+def test_the_3d_model_keeps_the_planar_lateral_grasp_by_default(tmp_path: Path) -> None:
+    """Issue 20 item 5: the 3-D lateral grasp (TaskConfig.lateral_grasp_3d) is off by default
+    (docs/task_cycle.md, "The lateral grasp in 3-D"), so ``--model 3d`` and ``--model planar``
+    run the same lateral episode: the same transitions, contacts, S_G and judgement."""
+    runs = {}
+    for model in ("3d", "planar"):
+        out = tmp_path / model
+        argv = ["--scene", "single_rectangle", "--approach", "lateral", "--model", model]
+        assert main([*argv, "--out", str(out), "--no-record"]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        visits = [(v["state"], v["next"], v["reason"], v["sim_seconds"]) for v in s["visits"]]
+        runs[model] = (s["success"], visits, s["cycles"])
+    assert runs["3d"] == runs["planar"]
+    (cycle,) = runs["3d"][2]
+    assert cycle["approach"] == "lateral" and cycle["judgement"]["place_error_mm"] < 20.0
+
+
+@pytest.mark.e2e
 def test_a_lateral_grasp_of_the_pentagon_takes_its_side_faces_and_delivers_it(
     tmp_path: Path,
 ) -> None:
