@@ -23,6 +23,7 @@ here, as is :data:`controllers.finger_samples.PAD_NORMAL_LOCAL`.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass
 
@@ -41,6 +42,7 @@ from controllers.finger_geometry import (
     pad_normals,
 )
 from controllers.finger_samples import Criteria, FingerSamples
+from controllers.finger_span import FingerSpans
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -174,6 +176,18 @@ TOP_MARGIN = GRASP_DEPTH
 BOTTOM_MARGIN = 0.02
 
 
+def _beyond_span(
+    model: mujoco.MjModel, qpos: NDArray[np.float64], tips: NDArray[np.float64]
+) -> bool:
+    """True when a fingertip target of ``tips`` (4, 3) lies beyond its finger's span
+    (:class:`controllers.finger_span.FingerSpans`) from configuration ``qpos``: no hand posture
+    brings that fingertip within :data:`CONTACT_TOLERANCE` of it."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    return bool(FingerSpans.of(model, data).out_of_reach(tips, CONTACT_TOLERANCE).any())
+
+
 def check_reach(
     world: World,
     prism: PerceivedPrism,
@@ -200,8 +214,10 @@ def check_reach(
     from the sampled posture that takes its contact best (:meth:`FingerSamples.best`) where one
     does, instead of from the hand's present posture: a global search the local IK refines.
     ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
-    ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
-    those of the shorter run (the verdict is the same)."""
+    ``give_up``), and does not run at all (nor the sampled start) when, without ``slide``, a
+    fingertip target lies beyond its finger's span (:func:`_beyond_span`); an unreachable
+    verdict's ``hand_q``, ``tip_error``, ``load`` and reason are then those of the shorter run
+    (the verdict is the same)."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -212,7 +228,10 @@ def check_reach(
     spacing = float(gaps.min())
     tips, centres = grip_targets(p, n, squeeze)
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
-    if samples is not None:
+    # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
+    # caller throws unreachable verdicts away, the verdict is taken from the start posture
+    hopeless = give_up and not slide and _beyond_span(model, start, tips)
+    if samples is not None and not hopeless:
         start = _sampled_start(
             model, start, samples, p, n, prism, heights if slide else None, squeeze
         )
@@ -222,7 +241,7 @@ def check_reach(
         optimize=False,
         joints="hand",
         tolerance=CONTACT_TOLERANCE,
-        reach_iterations=IK_ITERATIONS,
+        reach_iterations=0 if hopeless else IK_ITERATIONS,
         qpos=start,
         model=model,
         pad_centres=centres,
@@ -348,6 +367,36 @@ def finger_contacts(
     return given_contacts(th, xy, nxy, z, order)
 
 
+def ranked_assignments(
+    world: World,
+    prism: PerceivedPrism,
+    target: ReachTarget,
+    theta: ArrayLike,
+    *,
+    model: mujoco.MjModel | None = None,
+    qpos: ArrayLike | None = None,
+    heights: ArrayLike | None = None,
+) -> list[FingerContacts]:
+    """The 24 ways to give the contacts ``theta`` to the four fingers, each as the contacts
+    given (at each fingertip's height, or at ``heights``, a 3-D grasp's), ranked by total
+    squared reach distance from the fingertips of ``qpos`` (the world's state when None): the
+    order :func:`reachable_contacts` checks them in, without the reach test."""
+    th = np.asarray(theta, dtype=float)
+    model = world.model if model is None else model
+    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
+    xy, nxy, z = contacts_at_tips(target, th, tips, prism.bottom)
+    perms = np.array(list(itertools.permutations(range(len(th)))))
+    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
+    zs = (
+        np.broadcast_to(z[None, :], perms.shape)
+        if heights is None
+        else np.asarray(heights, dtype=float)[perms]
+    )
+    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
+    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
+    return [given_contacts(th, xy, nxy, zs[k], perms[k]) for k in np.argsort(cost, kind="stable")]
+
+
 #: Assignments :func:`reachable_contacts` tries, nearest first.
 ASSIGNMENTS_TRIED = 6
 
@@ -380,21 +429,10 @@ def reachable_contacts(
     ``give_up``: each check stops as soon as it cannot succeed (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
-    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
-    table_z = prism.bottom
-    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
-    perms = np.array(list(itertools.permutations(range(len(th)))))
-    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
-    zs = (
-        np.broadcast_to(z[None, :], perms.shape)
-        if heights is None
-        else np.asarray(heights, dtype=float)[perms]
-    )
-    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
-    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
     first: tuple[FingerContacts, HandReach] | None = None
-    for k in np.argsort(cost, kind="stable")[:tries]:
-        contacts = given_contacts(th, xy, nxy, zs[k], perms[k])
+    for contacts in ranked_assignments(
+        world, prism, target, th, model=model, qpos=qpos, heights=heights
+    )[:tries]:
         reach = check_reach(
             world,
             prism,
@@ -409,7 +447,8 @@ def reachable_contacts(
             give_up=give_up,
         )
         if slide and reach.heights is not None:
-            contacts = given_contacts(th, xy, nxy, reach.heights, perms[k])
+            points = np.column_stack([contacts.points[:, :2], reach.heights])
+            contacts = dataclasses.replace(contacts, points=points)
         if reach.reachable:
             return contacts, reach
         if first is None:
