@@ -201,6 +201,7 @@ def check_reach(
     samples: FingerSamples | None = None,
     squeeze: float = SQUEEZE_REACH,
     give_up: bool = False,
+    span_test: bool = False,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
@@ -214,10 +215,12 @@ def check_reach(
     from the sampled posture that takes its contact best (:meth:`FingerSamples.best`) where one
     does, instead of from the hand's present posture: a global search the local IK refines.
     ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
-    ``give_up``), and does not run at all (nor the sampled start) when, without ``slide``, a
-    fingertip target lies beyond its finger's span (:func:`_beyond_span`); an unreachable
-    verdict's ``hand_q``, ``tip_error``, ``load`` and reason are then those of the shorter run
-    (the verdict is the same)."""
+    ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
+    those of the shorter run (the verdict is the same). ``span_test``: without ``slide``, when a
+    fingertip target lies beyond its finger's span (:func:`_beyond_span`) neither the sampled
+    start nor the IK runs: the verdict (unreachable, as the IK's) is taken at the start posture,
+    its ``hand_q``, ``tip_error``, ``load`` and reason those of that posture, for a caller that
+    throws unreachable verdicts away."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -230,7 +233,7 @@ def check_reach(
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
     # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
     # caller throws unreachable verdicts away, the verdict is taken from the start posture
-    hopeless = give_up and not slide and _beyond_span(model, start, tips)
+    hopeless = span_test and not slide and _beyond_span(model, start, tips)
     if samples is not None and not hopeless:
         start = _sampled_start(
             model, start, samples, p, n, prism, heights if slide else None, squeeze
@@ -416,6 +419,7 @@ def reachable_contacts(
     squeeze: float = SQUEEZE_REACH,
     heights: ArrayLike | None = None,
     give_up: bool = False,
+    span_test: bool = False,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
@@ -426,7 +430,8 @@ def reachable_contacts(
     ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
     its contact each fingertip must reach (:func:`check_reach`). ``heights`` (n,): world z of
     each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
-    ``give_up``: each check stops as soon as it cannot succeed (:func:`check_reach`)."""
+    ``give_up``: each check stops as soon as it cannot succeed, ``span_test``: skips the IK
+    of contacts beyond a finger's span (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     first: tuple[FingerContacts, HandReach] | None = None
@@ -445,6 +450,7 @@ def reachable_contacts(
             samples=samples,
             squeeze=squeeze,
             give_up=give_up,
+            span_test=span_test,
         )
         if slide and reach.heights is not None:
             points = np.column_stack([contacts.points[:, :2], reach.heights])

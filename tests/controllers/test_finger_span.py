@@ -54,7 +54,9 @@ def test_pre_test_never_refuses_what_the_full_reach_test_accepts(hovering) -> No
         tips, _ = grip_targets(points, normals, SQUEEZE_REACH)
         out = FingerSpans.of(world.model, world.data).out_of_reach(tips, CONTACT_TOLERANCE)
         full = check_reach(world, prism, points, normals, check_spacing=False)
-        quick = check_reach(world, prism, points, normals, check_spacing=False, give_up=True)
+        quick = check_reach(
+            world, prism, points, normals, check_spacing=False, give_up=True, span_test=True
+        )
         assert quick.reachable == full.reachable
         if out.any():
             fired += 1
