@@ -430,8 +430,9 @@ def reachable_contacts(
     ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
     its contact each fingertip must reach (:func:`check_reach`). ``heights`` (n,): world z of
     each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
-    ``give_up``: each check stops as soon as it cannot succeed, ``span_test``: skips the IK
-    of contacts beyond a finger's span (:func:`check_reach`)."""
+    ``give_up``: each check stops as soon as it cannot succeed, and the checks after the first
+    skip the IK of contacts beyond a finger's span (only the first's reason is returned);
+    ``span_test``: the first check does too (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     first: tuple[FingerContacts, HandReach] | None = None
@@ -450,7 +451,8 @@ def reachable_contacts(
             samples=samples,
             squeeze=squeeze,
             give_up=give_up,
-            span_test=span_test,
+            # past the first assignment an unreachable verdict is thrown away
+            span_test=span_test or (give_up and first is not None),
         )
         if slide and reach.heights is not None:
             points = np.column_stack([contacts.points[:, :2], reach.heights])
