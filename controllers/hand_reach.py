@@ -177,12 +177,15 @@ BOTTOM_MARGIN = 0.02
 
 
 def _beyond_span(
-    model: mujoco.MjModel, qpos: NDArray[np.float64], tips: NDArray[np.float64]
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    qpos: NDArray[np.float64],
+    tips: NDArray[np.float64],
 ) -> bool:
     """True when a fingertip target of ``tips`` (4, 3) lies beyond its finger's span
     (:class:`controllers.finger_span.FingerSpans`) from configuration ``qpos``: no hand posture
-    brings that fingertip within :data:`CONTACT_TOLERANCE` of it."""
-    data = mujoco.MjData(model)
+    brings that fingertip within :data:`CONTACT_TOLERANCE` of it. ``data`` (of ``model``) is
+    left at ``qpos``, its kinematics computed."""
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     return bool(FingerSpans.of(model, data).out_of_reach(tips, CONTACT_TOLERANCE).any())
@@ -233,7 +236,8 @@ def check_reach(
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
     # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
     # caller throws unreachable verdicts away, the verdict is taken from the start posture
-    hopeless = span_test and not slide and _beyond_span(model, start, tips)
+    data = mujoco.MjData(model)
+    hopeless = span_test and not slide and _beyond_span(model, data, start, tips)
     if samples is not None and not hopeless:
         start = _sampled_start(
             model, start, samples, p, n, prism, heights if slide else None, squeeze
@@ -252,7 +256,6 @@ def check_reach(
         give_up=give_up,
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
-    data = mujoco.MjData(model)
     data.qpos[:] = start
     data.qpos[RobotIndices.of(model).hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)
@@ -379,11 +382,13 @@ def ranked_assignments(
     model: mujoco.MjModel | None = None,
     qpos: ArrayLike | None = None,
     heights: ArrayLike | None = None,
+    count: int | None = None,
 ) -> list[FingerContacts]:
     """The 24 ways to give the contacts ``theta`` to the four fingers, each as the contacts
     given (at each fingertip's height, or at ``heights``, a 3-D grasp's), ranked by total
     squared reach distance from the fingertips of ``qpos`` (the world's state when None): the
-    order :func:`reachable_contacts` checks them in, without the reach test."""
+    order :func:`reachable_contacts` checks them in, without the reach test; the first ``count``
+    of them (all when None)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
@@ -397,7 +402,8 @@ def ranked_assignments(
     )
     pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
     cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
-    return [given_contacts(th, xy, nxy, zs[k], perms[k]) for k in np.argsort(cost, kind="stable")]
+    ranked = np.argsort(cost, kind="stable")[:count]
+    return [given_contacts(th, xy, nxy, zs[k], perms[k]) for k in ranked]
 
 
 #: Assignments :func:`reachable_contacts` tries, nearest first.
@@ -437,8 +443,8 @@ def reachable_contacts(
     model = world.model if model is None else model
     first: tuple[FingerContacts, HandReach] | None = None
     for contacts in ranked_assignments(
-        world, prism, target, th, model=model, qpos=qpos, heights=heights
-    )[:tries]:
+        world, prism, target, th, model=model, qpos=qpos, heights=heights, count=tries
+    ):
         reach = check_reach(
             world,
             prism,

@@ -125,6 +125,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
                 model=ep.planning,
                 qpos=seed,
                 heights=query.heights,
+                count=1,
             )[0]
             yield SeedStart(label, seed, contacts)
 
