@@ -23,6 +23,7 @@ here, as is :data:`controllers.finger_samples.PAD_NORMAL_LOCAL`.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass
 
@@ -41,6 +42,7 @@ from controllers.finger_geometry import (
     pad_normals,
 )
 from controllers.finger_samples import Criteria, FingerSamples
+from controllers.finger_span import FingerSpans
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -174,6 +176,21 @@ TOP_MARGIN = GRASP_DEPTH
 BOTTOM_MARGIN = 0.02
 
 
+def _beyond_span(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    qpos: NDArray[np.float64],
+    tips: NDArray[np.float64],
+) -> bool:
+    """True when a fingertip target of ``tips`` (4, 3) lies beyond its finger's span
+    (:class:`controllers.finger_span.FingerSpans`) from configuration ``qpos``: no hand posture
+    brings that fingertip within :data:`CONTACT_TOLERANCE` of it. ``data`` (of ``model``) is
+    left at ``qpos``, its kinematics computed."""
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    return bool(FingerSpans.of(model, data).out_of_reach(tips, CONTACT_TOLERANCE).any())
+
+
 def check_reach(
     world: World,
     prism: PerceivedPrism,
@@ -187,6 +204,7 @@ def check_reach(
     samples: FingerSamples | None = None,
     squeeze: float = SQUEEZE_REACH,
     give_up: bool = False,
+    span_test: bool = False,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
@@ -201,7 +219,11 @@ def check_reach(
     does, instead of from the hand's present posture: a global search the local IK refines.
     ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
     ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
-    those of the shorter run (the verdict is the same)."""
+    those of the shorter run (the verdict is the same). ``span_test``: without ``slide``, when a
+    fingertip target lies beyond its finger's span (:func:`_beyond_span`) neither the sampled
+    start nor the IK runs: the verdict (unreachable, as the IK's) is taken at the start posture,
+    its ``hand_q``, ``tip_error``, ``load`` and reason those of that posture, for a caller that
+    throws unreachable verdicts away."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -212,7 +234,11 @@ def check_reach(
     spacing = float(gaps.min())
     tips, centres = grip_targets(p, n, squeeze)
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
-    if samples is not None:
+    # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
+    # caller throws unreachable verdicts away, the verdict is taken from the start posture
+    data = mujoco.MjData(model)
+    hopeless = span_test and not slide and _beyond_span(model, data, start, tips)
+    if samples is not None and not hopeless:
         start = _sampled_start(
             model, start, samples, p, n, prism, heights if slide else None, squeeze
         )
@@ -222,7 +248,7 @@ def check_reach(
         optimize=False,
         joints="hand",
         tolerance=CONTACT_TOLERANCE,
-        reach_iterations=IK_ITERATIONS,
+        reach_iterations=0 if hopeless else IK_ITERATIONS,
         qpos=start,
         model=model,
         pad_centres=centres,
@@ -230,7 +256,6 @@ def check_reach(
         give_up=give_up,
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
-    data = mujoco.MjData(model)
     data.qpos[:] = start
     data.qpos[RobotIndices.of(model).hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)
@@ -348,6 +373,39 @@ def finger_contacts(
     return given_contacts(th, xy, nxy, z, order)
 
 
+def ranked_assignments(
+    world: World,
+    prism: PerceivedPrism,
+    target: ReachTarget,
+    theta: ArrayLike,
+    *,
+    model: mujoco.MjModel | None = None,
+    qpos: ArrayLike | None = None,
+    heights: ArrayLike | None = None,
+    count: int | None = None,
+) -> list[FingerContacts]:
+    """The 24 ways to give the contacts ``theta`` to the four fingers, each as the contacts
+    given (at each fingertip's height, or at ``heights``, a 3-D grasp's), ranked by total
+    squared reach distance from the fingertips of ``qpos`` (the world's state when None): the
+    order :func:`reachable_contacts` checks them in, without the reach test; the first ``count``
+    of them (all when None)."""
+    th = np.asarray(theta, dtype=float)
+    model = world.model if model is None else model
+    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
+    xy, nxy, z = contacts_at_tips(target, th, tips, prism.bottom)
+    perms = np.array(list(itertools.permutations(range(len(th)))))
+    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
+    zs = (
+        np.broadcast_to(z[None, :], perms.shape)
+        if heights is None
+        else np.asarray(heights, dtype=float)[perms]
+    )
+    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
+    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
+    ranked = np.argsort(cost, kind="stable")[:count]
+    return [given_contacts(th, xy, nxy, zs[k], perms[k]) for k in ranked]
+
+
 #: Assignments :func:`reachable_contacts` tries, nearest first.
 ASSIGNMENTS_TRIED = 6
 
@@ -367,6 +425,7 @@ def reachable_contacts(
     squeeze: float = SQUEEZE_REACH,
     heights: ArrayLike | None = None,
     give_up: bool = False,
+    span_test: bool = False,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
@@ -377,24 +436,15 @@ def reachable_contacts(
     ``samples``: start each check's IK from sampled finger postures; ``squeeze``: how far past
     its contact each fingertip must reach (:func:`check_reach`). ``heights`` (n,): world z of
     each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
-    ``give_up``: each check stops as soon as it cannot succeed (:func:`check_reach`)."""
+    ``give_up``: each check stops as soon as it cannot succeed, and the checks after the first
+    skip the IK of contacts beyond a finger's span (only the first's reason is returned);
+    ``span_test``: the first check does too (:func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
-    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
-    table_z = prism.bottom
-    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
-    perms = np.array(list(itertools.permutations(range(len(th)))))
-    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
-    zs = (
-        np.broadcast_to(z[None, :], perms.shape)
-        if heights is None
-        else np.asarray(heights, dtype=float)[perms]
-    )
-    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
-    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
     first: tuple[FingerContacts, HandReach] | None = None
-    for k in np.argsort(cost, kind="stable")[:tries]:
-        contacts = given_contacts(th, xy, nxy, zs[k], perms[k])
+    for contacts in ranked_assignments(
+        world, prism, target, th, model=model, qpos=qpos, heights=heights, count=tries
+    ):
         reach = check_reach(
             world,
             prism,
@@ -407,9 +457,12 @@ def reachable_contacts(
             samples=samples,
             squeeze=squeeze,
             give_up=give_up,
+            # past the first assignment an unreachable verdict is thrown away
+            span_test=span_test or (give_up and first is not None),
         )
         if slide and reach.heights is not None:
-            contacts = given_contacts(th, xy, nxy, reach.heights, perms[k])
+            points = np.column_stack([contacts.points[:, :2], reach.heights])
+            contacts = dataclasses.replace(contacts, points=points)
         if reach.reachable:
             return contacts, reach
         if first is None:

@@ -226,6 +226,7 @@ def search_poses(
                 squeeze=query.squeeze,
                 heights=query.heights,
                 give_up=reachable_only,  # else the loads of unreachable poses rank them
+                span_test=reachable_only,  # unreachable verdicts' reasons are not reported
             )
             qpos = pose.qpos.copy()
             qpos[hand_adr] = reach.hand_q

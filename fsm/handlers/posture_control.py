@@ -10,7 +10,7 @@ import numpy as np
 
 from controllers.cspace import CollisionChecker
 from controllers.grip import PRE_CONTACT
-from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, reachable_contacts
+from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, ranked_assignments
 from controllers.motion import approach, approach_touches, reposition
 from controllers.palm_candidates import PalmPose, PoseSetting, lateral_poses, roll_seeds, top_poses
 from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds
@@ -117,17 +117,16 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     def starts() -> Iterator[SeedStart]:
         # the contacts the nearest assignment gives the fingers at each seed
         for label, seed in roll_seeds(ep.world, params):
-            contacts, _ = reachable_contacts(
+            contacts = ranked_assignments(
                 ep.world,
                 ep.prism,
                 ep.target,
                 theta,
                 model=ep.planning,
                 qpos=seed,
-                tries=1,
                 heights=query.heights,
-                give_up=True,  # only the assignment is used
-            )
+                count=1,
+            )[0]
             yield SeedStart(label, seed, contacts)
 
     found = search_seeds(
