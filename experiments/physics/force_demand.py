@@ -131,14 +131,18 @@ def force_demand(
     measured: ArrayLike,
     weight: float,
     block_yaw: float,
+    torsion: float = PAD_TORSION,
 ) -> ForceDemand:
     """The demand of the test's loads on a grasp held with the ``measured`` normal forces (N)
     at ``points``/``normals`` (block centre-of-mass frame, m); ``weight`` = m*g (N), the block
-    turned by ``block_yaw`` in the world (the world's loads are turned into its frame)."""
+    turned by ``block_yaw`` in the world (the world's loads are turned into its frame);
+    ``torsion``: the pads' torsional coefficient (m)."""
     c, s = np.cos(-block_yaw), np.sin(-block_yaw)
     to_block = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     alphas = {
-        stage: load_multiple(points, normals, measured, weight * (to_block @ np.asarray(d)))
+        stage: load_multiple(
+            points, normals, measured, weight * (to_block @ np.asarray(d)), torsion=torsion
+        )
         if any(d)
         else ALPHA_CAP
         for stage, d in STAGE_LOADS.items()
@@ -154,6 +158,7 @@ def held_force_demand(
     measured: ArrayLike,
     weight: float,
     block_yaw: float,
+    torsion: float = PAD_TORSION,
 ) -> ForceDemand:
     """:func:`force_demand` of a held grasp: each contact point (block centre-of-mass frame) put
     on the side face its polar angle meets (as :func:`experiments.physics.measures.grasp_measures`
@@ -161,4 +166,4 @@ def held_force_demand(
     frames = polygon.locate(np.arctan2(points[:, 1], points[:, 0]))
     p = np.column_stack([frames.point, points[:, 2]])
     n = np.column_stack([frames.normal, np.zeros(len(p))])
-    return force_demand(p, n, measured, weight, block_yaw)
+    return force_demand(p, n, measured, weight, block_yaw, torsion)

@@ -204,3 +204,33 @@ def test_bad_model_or_depth_is_refused_with_one_line_and_nothing_written(
     run = _cli("--out", str(out), *args)
     assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1
     assert message in run.stderr and not out.exists()
+
+
+@pytest.mark.e2e
+def test_the_demand_recomputed_from_the_results_file_is_the_studys_own(quick, capsys) -> None:
+    from experiments.physics.demand_variants import (
+        VARIANTS,
+        BlockFacts,
+        main,
+        recompute,
+        scored,
+    )
+
+    out, results, _ = quick
+    rs = [r for r in scored(results) if r["measures"]["force_demand"] is not None]
+    assert rs, "no grasp of the quick run has a demand"
+    blocks = {obj: BlockFacts.of(obj) for obj in {r["object"] for r in rs}}
+    registered, no_torsion, target = (recompute(rs, v, blocks) for v in VARIANTS)
+    for r, a, b in zip(rs, registered, no_torsion, strict=True):
+        # the stored points and forces are rounded: 1e-3 relative
+        assert a.demand == pytest.approx(r["measures"]["force_demand"], rel=2e-3)
+        assert a.worst_stage == r["measures"]["force_demand_stage"]
+        assert b.demand is None or b.demand >= a.demand - 1e-9  # torsion only helps
+    assert any(
+        t.demand != pytest.approx(a.demand, rel=1e-3)
+        for t, a in zip(target, registered, strict=True)
+    )
+    assert main([str(out / "results.jsonl")]) == 0
+    printed = capsys.readouterr().out
+    assert all(f"{v.name}: pooled" in printed for v in VARIANTS)
+    assert main([str(out / "missing.jsonl")]) == 2
