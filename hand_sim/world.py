@@ -281,6 +281,11 @@ class World:
             self.scene.block(name)
         return self._block_bodies[name]
 
+    def block_weight(self, name: str) -> float:
+        """Weight m*g (N) of block ``name``: its mass times the model's gravity's magnitude."""
+        mass = self.model.body_subtreemass[self.block_body_id(name)]
+        return float(mass * np.linalg.norm(self.model.opt.gravity))
+
     # --- robot -----------------------------------------------------------------------------
     def _require_robot(self) -> None:
         if not self.with_robot:

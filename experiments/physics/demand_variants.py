@@ -58,9 +58,7 @@ class BlockFacts:
         builds it."""
         world = World.build(load_scene(f"single_{obj}"))
         name = world.scene.target
-        body = world.block_body_id(name)
-        weight = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
-        return cls(ReachTarget.from_world(world, name), weight)
+        return cls(ReachTarget.from_world(world, name), world.block_weight(name))
 
 
 def scored(results: Sequence[dict]) -> list[dict]:

@@ -240,7 +240,7 @@ def physical_test(
     if snapshot is not None:
         snapshot("grasp", world)
     body = world.block_body_id(sw.name)
-    weight = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
+    weight = world.block_weight(sw.name)
     table = _Table(world)
     table.off()
     try:
@@ -292,8 +292,7 @@ def test_grasp(
     world = sw.world
     world.reset()
     spec = world.scene.block(sw.name)
-    body = world.block_body_id(sw.name)
-    weight = float(world.model.body_subtreemass[body] * np.linalg.norm(world.model.opt.gravity))
+    weight = world.block_weight(sw.name)
     load = weight / GRIP_FORCE
     syn = synthesize(
         out.model,
