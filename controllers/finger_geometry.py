@@ -32,6 +32,11 @@ class PerceivedPrism:
         """The prism of ``target``'s footprint from ``bottom`` up to its top face."""
         return cls(target.footprint(), float(bottom), float(target.top_z))
 
+    @property
+    def centre_z(self) -> float:
+        """World z (m) of the prism's mid-height: the 3-D grasp model's centre of mass."""
+        return 0.5 * (self.bottom + self.top)
+
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Exact signed distance (m) of points (..., 3) to the prism; negative inside."""
         p = np.asarray(points, dtype=float)

@@ -86,7 +86,7 @@ def contact_heights(ep: Episode) -> NDArray[np.float64] | None:
     syn = ep.synthesis
     if not isinstance(syn, GraspSynthesis3D):
         return None
-    return 0.5 * (ep.prism.bottom + ep.prism.top) + syn.heights
+    return ep.prism.centre_z + syn.heights
 
 
 def plan_approach(

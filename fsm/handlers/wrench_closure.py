@@ -43,7 +43,7 @@ def synthesis_for(
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
     high = height - TOP_GRASP_DEPTHS[0]
-    com_z = 0.5 * (ep.prism.bottom + ep.prism.top)
+    com_z = ep.prism.centre_z
     if slides(ep):
         # a lateral hand takes only the faces beside its approach axis: each contact stays on
         # its side's arc; in 3-D at the height its finger takes (the hand's shape sets it)
@@ -230,7 +230,7 @@ def _take_heights(ep: Episode, contacts: FingerContacts) -> None:
         return
     z = np.empty(len(contacts.contact_of_finger))
     z[list(contacts.contact_of_finger)] = contacts.points[:, 2]
-    syn.set_heights(z - 0.5 * (ep.prism.bottom + ep.prism.top))
+    syn.set_heights(z - ep.prism.centre_z)
 
 
 def _last_reachable_grasp(ep: Episode) -> bool:
