@@ -108,6 +108,11 @@ class CycleRecord:
     success: bool = False
     failure: str | None = None
     failure_detail: str = ""
+    #: the picked block's true position (3,) when Select/Model saw it, for judging only
+    block_start: list[float] | None = None
+    #: a failed cycle's block as the simulation has it then (fsm.judge.block_at_failure): tilt,
+    #: distance from block_start, knocked over
+    block_at_failure: dict[str, Any] | None = None
 
 
 @dataclass

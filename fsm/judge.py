@@ -12,6 +12,7 @@ than :data:`MAX_OTHER_MOTION`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -133,4 +134,30 @@ def judge(
         other_motion=moved,
         final_position=pos,
         final_quat=quat,
+    )
+
+
+def block_at_failure(world: World, block: str, start: ArrayLike) -> dict[str, Any]:
+    """Where block ``block`` is when its cycle fails, judged from the simulation's true state
+    (for the summary and the bench; no state reads it): its tilt (deg), its horizontal distance
+    (mm) from ``start`` (its true position when Select/Model saw it), and ``knocked_over``
+    when the tilt is at least :data:`MAX_TILT_DEG` (fallen, or leaning on the hand)."""
+    pos, quat = world.block_pose(block)
+    tilt = tilt_degrees(quat)
+    moved = float(np.linalg.norm(pos[:2] - np.asarray(start, dtype=float)[:2]))
+    return {
+        "tilt_deg": round(tilt, 1),
+        "moved_mm": round(moved * 1000.0, 1),
+        "knocked_over": bool(tilt >= MAX_TILT_DEG),
+    }
+
+
+def block_state_text(state: dict[str, Any] | None, block: str | None) -> str:
+    """The judged state of a failed cycle's block in words ("" when there is none)."""
+    if not state or block is None:
+        return ""
+    how = "knocked over" if state["knocked_over"] else "upright"
+    return (
+        f"{block} {how} (judged: tilted {state['tilt_deg']:.0f} deg, "
+        f"{state['moved_mm']:.0f} mm from where it stood)"
     )

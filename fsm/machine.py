@@ -28,6 +28,7 @@ from controllers.grasp.registry import make_composer
 from fsm.config import DEFAULT_CONFIG
 from fsm.context import Episode, EpisodeOptions, out_paths
 from fsm.handlers import HANDLERS, TaskFailedError
+from fsm.judge import block_at_failure
 from fsm.layout import episode_scene
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from fsm.states import TRANSITIONS, Failure, State, allowed
@@ -252,6 +253,17 @@ def run_episode(
     return result
 
 
+def _judge_failed_cycle(ep: Episode) -> None:
+    """Record where the failed cycle's block is (fsm.judge.block_at_failure), if one was
+    picked."""
+    record = ep.record
+    if record.block is None or record.block_start is None:
+        return
+    state = block_at_failure(ep.world, record.block, record.block_start)
+    if np.isfinite([state["tilt_deg"], state["moved_mm"]]).all():  # not after a NaN in the physics
+        record.block_at_failure = state
+
+
 def _loop(
     ep: Episode,
     result: EpisodeResult,
@@ -286,6 +298,7 @@ def _loop(
                 result.traceback = "".join(traceback.format_exception(e))
             if ep.cycles:
                 ep.record.failure, ep.record.failure_detail = failure.value, detail
+                _judge_failed_cycle(ep)
         visit.sim_seconds = world.time - visit.sim_start
         visit.wall_seconds = time.perf_counter() - t0
         visit.reason, visit.next = reason, following.value

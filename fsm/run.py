@@ -285,6 +285,7 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
 
 def run(argv: Sequence[str] | None) -> int:
     options = options_from_args(argv)
+    from fsm.judge import block_state_text
     from fsm.machine import run_episode
 
     rrd, summary = out_paths(options.out)
@@ -306,7 +307,11 @@ def run(argv: Sequence[str] | None) -> int:
                 f"{j['place_error_mm']:.1f} mm from {where}, tilt {j['tilt_deg']:.1f} deg"
             )
     else:
-        print(f"FAILED: {result.failure}: {result.failure_detail}")
+        failed = result.cycles[-1] if result.cycles else {}
+        judged = block_state_text(failed.get("block_at_failure"), failed.get("block"))
+        print(
+            f"FAILED: {result.failure}: {result.failure_detail}" + (f"; {judged}" if judged else "")
+        )
     written = f"{summary}" + (f" and {rrd}" if options.record else "")
     print(f"sim {result.sim_time:.1f} s, wall {result.wall_time:.1f} s; wrote {written}")
     return 0 if result.success else 1

@@ -238,14 +238,24 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "",
     ]
     if s.failures:
-        out += ["| reason | episodes | share of episodes | seeds |", "|---|---|---|---|"]
+        out += [
+            "| reason | episodes | share of episodes | block knocked over | seeds |",
+            "|---|---|---|---|---|",
+        ]
         for f in s.failures:
             shown = ", ".join(str(x) for x in f.seeds[:SEEDS_SHOWN])
             more = f" and {len(f.seeds) - SEEDS_SHOWN} more" if len(f.seeds) > SEEDS_SHOWN else ""
             out.append(
-                f"| {f.reason} | {f.episodes} | {_pct(f.episodes / s.episodes)} | {shown}{more} |"
+                f"| {f.reason} | {f.episodes} | {_pct(f.episodes / s.episodes)} | "
+                f"{f.knocked_over} | {shown}{more} |"
             )
-        out += ["", "The recording of every failed episode is in `rrd/seed-NNNNNN.rrd`."]
+        out += [
+            "",
+            "*Block knocked over*: of those episodes, how many left the block they had picked "
+            "tilted 10 deg or more when they failed, judged from the simulation (the summary's "
+            "`block_at_failure`; no state reads it). The recording of every failed episode is in "
+            "`rrd/seed-NNNNNN.rrd`.",
+        ]
     else:
         out.append("No episode failed.")
     out += ["", f"![failure reasons]({FIGURES['failures']})", "", "## Place error", ""]

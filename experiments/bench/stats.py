@@ -108,6 +108,16 @@ class FailureRow:
     reason: str
     episodes: int
     seeds: tuple[int, ...]
+    #: of them, episodes whose failed cycle left its block knocked over (judged from the
+    #: simulation, ``block_at_failure`` of the summary)
+    knocked_over: int = 0
+
+
+def knocked_over(episode: dict[str, Any]) -> bool:
+    """Whether a failed episode's last cycle left its block knocked over (judged)."""
+    cycles = episode.get("cycles") or []
+    state = cycles[-1].get("block_at_failure") if cycles else None
+    return bool(state and state.get("knocked_over"))
 
 
 @dataclass(frozen=True)
@@ -183,11 +193,13 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         (b, n, k) for b, (n, k) in sorted(blocks.items(), key=lambda kv: (kv[0] is None, kv[0]))
     )
     failed: dict[str, list[int]] = defaultdict(list)
+    knocked: dict[str, int] = defaultdict(int)
     for e, kind in zip(eps, kinds, strict=True):
         if kind == FAILED:
             failed[e.get("failure") or NO_REASON].append(int(e["seed"]))
+            knocked[e.get("failure") or NO_REASON] += knocked_over(e)
     failures = tuple(
-        FailureRow(reason, len(seeds), tuple(seeds))
+        FailureRow(reason, len(seeds), tuple(seeds), knocked[reason])
         for reason, seeds in sorted(failed.items(), key=lambda kv: (-len(kv[1]), kv[0]))
     )
     errors = [

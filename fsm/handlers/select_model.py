@@ -55,6 +55,7 @@ def select_model(ep: Episode) -> Step:
     record.polygon = model.polygon.vertices.round(5).tolist()
     truth = world.scene.block(name)
     true_pos = world.block_pose(name)[0]
+    record.block_start = [float(v) for v in true_pos]
     record.polygon_error = {
         "centroid_mm": float(np.linalg.norm(model.centroid[:2] - true_pos[:2]) * 1000),
         "area_percent": float(

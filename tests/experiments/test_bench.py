@@ -152,7 +152,11 @@ def _synthetic_lines() -> list[dict[str, Any]]:
                 "visits": [
                     {"state": s, "wall_seconds": float(rng.uniform(0.1, 5.0))} for s in entered
                 ],
-                "cycles": ([{"approach": "lateral"}] if seed == 7 else [])
+                "cycles": (
+                    [{"approach": "lateral", "block_at_failure": {"knocked_over": True}}]
+                    if seed == 7
+                    else []
+                )
                 if failure
                 else [
                     {
@@ -176,7 +180,9 @@ def test_report_numbers_match_the_results(tmp_path: Path) -> None:
     check_report(tmp_path)
     report = (tmp_path / "report.md").read_text()
     rows = {r[0]: r for r in table(report, "Failure reasons")}
-    assert rows["fingers cannot reach"][3] == "3, 7" and rows[CRASHED][3] == "8"
+    assert rows["fingers cannot reach"][4] == "3, 7" and rows[CRASHED][4] == "8"
+    # seed 7's block was knocked over (its summary says so); seed 3 has no cycle to judge
+    assert rows["fingers cannot reach"][3] == "1" and rows[CRASHED][3] == "0"
     assert "--seeds 0:10 --blocks 3:5 --controller kb" in report
     split = {r[0]: r[1:3] for r in table(report, "Success rate") if "approach" in r[0]}
     assert split == {

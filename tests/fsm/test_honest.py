@@ -10,6 +10,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -248,3 +249,54 @@ def test_an_exception_of_the_machine_itself_is_named_too(tmp_path: Path, monkeyp
     assert result.failure_detail.startswith("the machine: OSError: disk full")
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["failure"] == Failure.INTERNAL_ERROR.value and "OSError" in s["traceback"]
+
+
+def _tip_over_and_fail(ep) -> Step:
+    """The picked block laid on its side (as a hand that pushes it over would), then a named
+    failure."""
+    world, name = ep.world, ep.record.block
+    m = world.model
+    body = world.block_body_id(name)
+    adr = m.jnt_qposadr[m.body_jntadr[body]]
+    world.data.qpos[adr + 3 : adr + 7] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]
+    world.data.qpos[adr : adr + 2] += [0.03, 0.04]
+    mujoco.mj_forward(m, world.data)
+    raise TaskFailedError(Failure.FINGERS_CANNOT_REACH, "rf did not touch the block")
+
+
+def test_a_failed_cycle_says_whether_its_block_was_knocked_over(
+    tmp_path: Path, monkeypatch, capfd
+) -> None:
+    monkeypatch.setitem(handlers.HANDLERS, State.COARSE_REACH, _tip_over_and_fail)
+    code = main(["--scene", "clutter3", "--controller", CONTROLLER, "--out", str(tmp_path)])
+    out, _ = capfd.readouterr()
+    assert code == 1
+    s = json.loads((tmp_path / "summary.json").read_text())
+    (cycle,) = s["cycles"]
+    state = cycle["block_at_failure"]
+    assert state["knocked_over"] and state["tilt_deg"] == pytest.approx(90.0, abs=0.1)
+    assert state["moved_mm"] == pytest.approx(50.0, abs=0.1)  # the 3-4-5 shift
+    # the reference is where the block stood when Select/Model saw it: the scene's position
+    start = np.asarray(cycle["block_start"])
+    scene = load_scene("clutter3")
+    assert np.linalg.norm(start[:2] - scene.block(cycle["block"]).position) < 1e-3
+    assert s["failure_detail"] == "rf did not touch the block"  # the FSM's reason is unchanged
+    (failed,) = [line for line in out.splitlines() if line.startswith("FAILED")]
+    assert failed.endswith(
+        f"; {cycle['block']} knocked over (judged: tilted 90 deg, 50 mm from where it stood)"
+    )
+
+
+def test_a_block_left_standing_is_judged_upright(clutter3_world: World) -> None:
+    from fsm.judge import block_at_failure, block_state_text
+
+    world = clutter3_world
+    name = world.scene.target
+    start = world.block_pose(name)[0]
+    state = block_at_failure(world, name, start + np.array([0.0, 0.002, 0.0]))
+    assert not state["knocked_over"] and state["tilt_deg"] < 1.0
+    assert state["moved_mm"] == pytest.approx(2.0, abs=0.05)
+    assert block_state_text(state, name) == (
+        f"{name} upright (judged: tilted 0 deg, 2 mm from where it stood)"
+    )
+    assert block_state_text(None, name) == ""
