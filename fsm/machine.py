@@ -28,7 +28,7 @@ from controllers.grasp.registry import make_composer
 from fsm.config import DEFAULT_CONFIG
 from fsm.context import Episode, EpisodeOptions, out_paths
 from fsm.handlers import HANDLERS, TaskFailedError
-from fsm.judge import block_at_failure
+from fsm.judge import block_at_failure, block_state_text
 from fsm.layout import episode_scene
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from fsm.states import TRANSITIONS, Failure, State, allowed
@@ -226,6 +226,7 @@ def run_episode(
         result.failure, result.failure_detail = Failure.INTERRUPTED.value, "Ctrl-C"
         if ep.cycles:
             ep.record.failure = Failure.INTERRUPTED.value
+            _judge_failed_cycle(ep)
         raise
     except Exception as e:  # the machine's own bug, outside any state: named all the same
         result.failure = Failure.INTERNAL_ERROR.value
@@ -244,6 +245,11 @@ def run_episode(
         result.warnings = _warning_lines(caught)
         try:
             verdict = "delivered" if result.success else f"failed: {result.failure}"
+            if not result.success and result.cycles:
+                judged = block_state_text(
+                    result.cycles[-1].get("block_at_failure"), result.cycles[-1].get("block")
+                )
+                verdict += f"; {judged}" if judged else ""
             recorder.log_verdict(result.success, verdict)
         finally:
             try:

@@ -281,10 +281,12 @@ def test_a_failed_cycle_says_whether_its_block_was_knocked_over(
     scene = load_scene("clutter3")
     assert np.linalg.norm(start[:2] - scene.block(cycle["block"]).position) < 1e-3
     assert s["failure_detail"] == "rf did not touch the block"  # the FSM's reason is unchanged
+    judged = f"{cycle['block']} knocked over (judged: tilted 90 deg, 50 mm from where it stood)"
     (failed,) = [line for line in out.splitlines() if line.startswith("FAILED")]
-    assert failed.endswith(
-        f"; {cycle['block']} knocked over (judged: tilted 90 deg, 50 mm from where it stood)"
-    )
+    assert failed.endswith(f"; {judged}")
+    # the recording's verdict says it too
+    events = [v[0] for _, v in rows(tmp_path / "episode.rrd", "/events", "TextLog:text")]
+    assert events[-1] == f"FAILED: failed: fingers cannot reach; {judged}"
 
 
 def test_a_block_left_standing_is_judged_upright(clutter3_world: World) -> None:
