@@ -16,7 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from experiments.bench.stats import BenchSummary, seed_ranges, summarize, wilson_interval
+from experiments.bench.stats import (
+    BenchSummary,
+    FailureRow,
+    seed_ranges,
+    summarize,
+    wilson_interval,
+)
 from fsm.judge import PLACE_TOLERANCE
 from graspsim_base.files import atomic_path, write_text
 
@@ -65,6 +71,15 @@ def _no_data(ax: Any, text: str) -> None:
     ax.set_axis_off()
 
 
+def _knocked_cell(row: FailureRow) -> str:
+    """How many of a reason's failures knocked their block over, and of how many judged."""
+    if row.judged == 0:
+        return "not judged"
+    if row.judged < row.episodes:
+        return f"{row.knocked_over} of {row.judged} judged"
+    return str(row.knocked_over)
+
+
 def _pct(x: float) -> str:
     return f"{100.0 * x:.1f} %"
 
@@ -100,6 +115,7 @@ def plot_failures(s: BenchSummary, path: Path) -> None:
             counts = [f.episodes for f in s.failures][::-1]
             bars = ax.barh(reasons, counts, color="tab:red")
             ax.bar_label(bars, padding=3)
+            ax.set_xlim(0, max(counts) * 1.12)  # room for the longest bar's label
             ax.set_xlabel("episodes")
             ax.xaxis.get_major_locator().set_params(integer=True)
         else:
@@ -247,13 +263,14 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
             more = f" and {len(f.seeds) - SEEDS_SHOWN} more" if len(f.seeds) > SEEDS_SHOWN else ""
             out.append(
                 f"| {f.reason} | {f.episodes} | {_pct(f.episodes / s.episodes)} | "
-                f"{f.knocked_over} | {shown}{more} |"
+                f"{_knocked_cell(f)} | {shown}{more} |"
             )
         out += [
             "",
             "*Block knocked over*: of those episodes, how many left the block they had picked "
             "tilted 10 deg or more when they failed, judged from the simulation (the summary's "
-            "`block_at_failure`; no state reads it). The recording of every failed episode is in "
+            "`block_at_failure`; no state reads it); *not judged* where the results were written "
+            "before the judge existed. The recording of every failed episode is in "
             "`rrd/seed-NNNNNN.rrd`.",
         ]
     else:

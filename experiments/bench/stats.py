@@ -111,12 +111,21 @@ class FailureRow:
     #: of them, episodes whose failed cycle left its block knocked over (judged from the
     #: simulation, ``block_at_failure`` of the summary)
     knocked_over: int = 0
+    #: of them, episodes whose summary has that judgement at all (results written before
+    #: the judge existed have none: their count is unknown, not zero)
+    judged: int = 0
+
+
+def block_at_failure(episode: dict[str, Any]) -> dict[str, Any] | None:
+    """The judged state of a failed episode's block (its last cycle's), or None."""
+    cycles = episode.get("cycles") or []
+    state = cycles[-1].get("block_at_failure") if cycles else None
+    return state if isinstance(state, dict) else None
 
 
 def knocked_over(episode: dict[str, Any]) -> bool:
     """Whether a failed episode's last cycle left its block knocked over (judged)."""
-    cycles = episode.get("cycles") or []
-    state = cycles[-1].get("block_at_failure") if cycles else None
+    state = block_at_failure(episode)
     return bool(state and state.get("knocked_over"))
 
 
@@ -194,12 +203,15 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
     )
     failed: dict[str, list[int]] = defaultdict(list)
     knocked: dict[str, int] = defaultdict(int)
+    judged: dict[str, int] = defaultdict(int)
     for e, kind in zip(eps, kinds, strict=True):
         if kind == FAILED:
-            failed[e.get("failure") or NO_REASON].append(int(e["seed"]))
-            knocked[e.get("failure") or NO_REASON] += knocked_over(e)
+            reason = e.get("failure") or NO_REASON
+            failed[reason].append(int(e["seed"]))
+            knocked[reason] += knocked_over(e)
+            judged[reason] += block_at_failure(e) is not None
     failures = tuple(
-        FailureRow(reason, len(seeds), tuple(seeds), knocked[reason])
+        FailureRow(reason, len(seeds), tuple(seeds), knocked[reason], judged[reason])
         for reason, seeds in sorted(failed.items(), key=lambda kv: (-len(kv[1]), kv[0]))
     )
     errors = [
