@@ -14,6 +14,9 @@ from numpy.typing import ArrayLike, NDArray
 if TYPE_CHECKING:
     from hand_sim.world import World
 
+#: A point on the table, world (x, y) in metres.
+TablePoint = tuple[float, float]
+
 
 @dataclass(frozen=True)
 class VisionView:
@@ -75,12 +78,7 @@ class TaskRecorder(Protocol):
         """One Wrench Closure controller step."""
         return None
 
-    def log_place(
-        self,
-        asked: tuple[float, float] | None,
-        used: tuple[float, float] | None,
-        table_z: float,
-    ) -> None:
+    def log_place(self, asked: TablePoint | None, used: TablePoint | None, table_z: float) -> None:
         """The place point asked for (None: the task cycle chose it) and the one the block is
         taken to, world xy on the table top at height ``table_z``."""
         return None

@@ -31,7 +31,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import ArrayLike, NDArray
 
-from fsm.recorder_protocol import SynthesisRecord, VisionView
+from fsm.recorder_protocol import SynthesisRecord, TablePoint, VisionView
 from hand_sim.errors import HandSimError
 from hand_sim.lifetime import ClosesOnExit
 from hand_sim.recorder import (
@@ -367,12 +367,7 @@ class EpisodeRecorder(ClosesOnExit):
             stream.disable_timeline(SYNTHESIS_TIMELINE)
         self._synthesis_last = k
 
-    def log_place(
-        self,
-        asked: tuple[float, float] | None,
-        used: tuple[float, float] | None,
-        table_z: float,
-    ) -> None:
+    def log_place(self, asked: TablePoint | None, used: TablePoint | None, table_z: float) -> None:
         """The place point asked for (``world/place/asked``, white; cleared when the task cycle
         chose the point itself) and the one the block is taken to (``world/place/used``, green),
         on the table top at ``table_z``, labelled with their distance when they differ."""

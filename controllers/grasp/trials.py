@@ -59,9 +59,28 @@ def control_state(
     )
 
 
-@dataclass(frozen=True)
-class TrialBatch:
-    """Results of T trials. Angles in radians; S_G is inf for infeasible configurations.
+@dataclass(frozen=True, kw_only=True)
+class TrialOutcomes:
+    """What a batch of T trials reports per trial, planar or 3-D (section 4.1): the descent's
+    steps and convergence, the final eps_FC and eps_MC, S_G (Eq. 13; inf when infeasible), and
+    success (converged to S_G <= the threshold)."""
+
+    steps: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+    eps_fc: NDArray[np.float64]
+    eps_mc: NDArray[np.float64]
+    s_g: NDArray[np.float64]
+    feasible: NDArray[np.bool_]
+    success: NDArray[np.bool_]
+
+    @property
+    def failure_rate(self) -> float:
+        return float(1.0 - self.success.mean())
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrialBatch(TrialOutcomes):
+    """Results of T planar trials. Angles in radians.
 
     ``states`` (when recorded) holds (eps_FC, eps_MC) before each step and after the last one,
     shape (T, MAX_STEPS + 1, 2), NaN past the end of each trial.
@@ -71,18 +90,7 @@ class TrialBatch:
     theta_initial: NDArray[np.float64]
     theta_final: NDArray[np.float64]
     points: NDArray[np.float64]  #: (T, n, 2) final contact points, unit-moment object frame
-    steps: NDArray[np.int64]
-    converged: NDArray[np.bool_]
-    eps_fc: NDArray[np.float64]
-    eps_mc: NDArray[np.float64]
-    s_g: NDArray[np.float64]
-    feasible: NDArray[np.bool_]
-    success: NDArray[np.bool_]
     states: NDArray[np.float64] | None = field(default=None, repr=False)
-
-    @property
-    def failure_rate(self) -> float:
-        return float(1.0 - self.success.mean())
 
     def subset(self, mask: NDArray[np.bool_]) -> TrialBatch:
         """The trials selected by a boolean (or index) ``mask`` over the batch."""

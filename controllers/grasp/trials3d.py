@@ -47,7 +47,7 @@ from controllers.grasp.prism import ContactFrames3D, face_axes
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.session import separate_contacts
 from controllers.grasp.state import ControlState3D
-from controllers.grasp.trials import DescentSettings, descend
+from controllers.grasp.trials import DescentSettings, TrialOutcomes, descend
 from controllers.grasp.wrench3d import mc_residual
 
 
@@ -222,8 +222,8 @@ def control_state_3d(
     )
 
 
-@dataclass(frozen=True)
-class TrialBatch3D:
+@dataclass(frozen=True, kw_only=True)
+class TrialBatch3D(TrialOutcomes):
     """Results of T 3-D trials (angles in rad; points (T, n, 3) in the unit-moment CoM frame)."""
 
     object_index: NDArray[np.int64]
@@ -233,17 +233,6 @@ class TrialBatch3D:
     z_final: NDArray[np.float64]
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
-    steps: NDArray[np.int64]
-    converged: NDArray[np.bool_]
-    eps_fc: NDArray[np.float64]
-    eps_mc: NDArray[np.float64]
-    s_g: NDArray[np.float64]
-    feasible: NDArray[np.bool_]
-    success: NDArray[np.bool_]
-
-    @property
-    def failure_rate(self) -> float:
-        return float(1.0 - self.success.mean())
 
 
 def random_contacts_3d(
