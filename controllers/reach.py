@@ -46,6 +46,19 @@ APPROACH_GAP = 0.04
 #: below the palm centre and the middle finger's 5.8 cm above it: 0.10 m puts all four fingertips
 #: on a 20 cm block's side faces with the palm's lower edge 5 cm above the table.
 LATERAL_DEPTH = 0.10
+#: Lateral goals tried, in order, when the one at (LATERAL_DEPTH, APPROACH_GAP) has no
+#: collision-free posture: (palm depth below the top, gap between the pre-shaped fingertips and
+#: the block), m. For a block nearer the arm's base than about 0.57 m the 5-joint arm reaches
+#: the nominal lateral goal only with its wrist pitched so far that the palm and fingers hit its
+#: own forearm (26 of the 35 "no collision-free goal posture" failures of the 100 random
+#: lateral scenes, docs/task_cycle.md); a palm closer to the block or higher unfolds the wrist.
+#: The depths keep the middle finger's knuckle (5.8 cm above the palm centre) below the top.
+LATERAL_GOAL_FALLBACKS: tuple[tuple[float, float], ...] = (
+    (LATERAL_DEPTH, 0.02),
+    (LATERAL_DEPTH, 0.0),
+    (0.07, 0.02),
+    (0.07, 0.0),
+)
 
 
 class PerceivedBlock(Protocol):
@@ -159,7 +172,8 @@ def goal_poses(
     target: ReachTarget, base_xy: ArrayLike
 ) -> dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]:
     """Palm poses (position, rotation) of each approach: two top candidates (the hand turned by
-    pi about its approach axis) and one lateral.
+    pi about its approach axis) and one lateral (:func:`lateral_fallback_poses` are tried when
+    it has no collision-free posture).
 
     Top: palm down, the thumb-to-middle-finger axis (hand y) across the block's narrowest width.
     Lateral: palm facing the block along the arm's radial direction, hand y vertical, so the
@@ -171,19 +185,38 @@ def goal_poses(
     the middle finger reaches down the block to within a few centimetres of the table and its
     links collide with it."""
     centre = np.array([*target.position_xy, 0.0])
-    radial = centre - np.array([*np.asarray(base_xy, float), 0.0])
-    radial[2] = 0.0
-    radial /= np.linalg.norm(radial)
+    radial = _radial(target, base_xy)
     down = np.array([0.0, 0.0, -1.0])
     top_pos = centre + np.array([0.0, 0.0, target.top_z + FINGER_REACH + APPROACH_GAP])
     axis = _grasp_axis(target)
-    up = np.array([0.0, 0.0, 1.0])
-    standoff = target.radius + FINGER_REACH + APPROACH_GAP
-    lat_pos = centre - standoff * radial + np.array([0.0, 0.0, target.top_z - LATERAL_DEPTH])
     return {
         "top": [(top_pos, _frame(s * axis, down)) for s in (1.0, -1.0)],
-        "lateral": [(lat_pos, _frame(up, radial))],
+        "lateral": [lateral_pose(target, radial, LATERAL_DEPTH, APPROACH_GAP)],
     }
+
+
+def _radial(target: ReachTarget, base_xy: ArrayLike) -> NDArray[np.float64]:
+    """Horizontal unit vector from the arm's base to the block's centre."""
+    radial = np.array([*target.position_xy, 0.0]) - np.array([*np.asarray(base_xy, float), 0.0])
+    return radial / np.linalg.norm(radial)
+
+
+def lateral_pose(
+    target: ReachTarget, radial: NDArray[np.float64], depth: float, gap: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The lateral palm pose (position, rotation) facing the block along ``radial`` with the
+    palm centre ``depth`` below its top and the pre-shaped fingertips ``gap`` from it."""
+    centre = np.array([*target.position_xy, target.top_z - depth])
+    standoff = target.radius + FINGER_REACH + gap
+    return centre - standoff * radial, _frame(np.array([0.0, 0.0, 1.0]), radial)
+
+
+def lateral_fallback_poses(
+    target: ReachTarget, base_xy: ArrayLike
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """The lateral goals of :data:`LATERAL_GOAL_FALLBACKS`, in their order."""
+    radial = _radial(target, base_xy)
+    return [lateral_pose(target, radial, d, g) for d, g in LATERAL_GOAL_FALLBACKS]
 
 
 #: Seeds of the arm IK (waist is set towards the target): elbow-up reaching postures.
@@ -250,6 +283,13 @@ def plan_coarse_reach(
     goals: dict[str, ApproachGoal] = {}
     for approach in approaches:
         goal = solve_goal(checker, approach, poses[approach], q_start)
+        if goal is None and approach == "lateral":
+            # the first fallback with a collision-free posture (nearer or higher palm)
+            fallbacks = (
+                solve_goal(checker, approach, [pose], q_start)
+                for pose in lateral_fallback_poses(target, base_xy)
+            )
+            goal = next((g for g in fallbacks if g is not None), None)
         if goal is None:
             continue
         goals[approach] = goal

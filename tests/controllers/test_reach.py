@@ -16,7 +16,15 @@ from controllers.delivery import SET_DOWN_HOVER, plan_delivery
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.grasp.objects import paper_object
-from controllers.reach import PRESHAPE, ReachTarget, plan_coarse_reach
+from controllers.reach import (
+    PRESHAPE,
+    ReachTarget,
+    goal_poses,
+    lateral_fallback_poses,
+    plan_coarse_reach,
+    solve_goal,
+)
+from fsm.layout import episode_scene
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World
@@ -284,3 +292,35 @@ def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_plac
     )
     assert turned > np.deg2rad(30.0)
     assert carried_contacts(world, "pentagon", second.path, 0.02) == []
+
+
+def test_a_lateral_goal_the_forearm_blocks_falls_back_to_a_nearer_or_higher_palm() -> None:
+    """Random scene 25 (1 block, 0.54 m from the arm's base): at the nominal lateral goal the
+    5-joint arm's wrist pitches so far that the hand hits the arm's own forearm, so no IK seed
+    gives a collision-free posture. The fallbacks (palm nearer the block or higher,
+    ``LATERAL_GOAL_FALLBACKS``) give one: the plan finds a lateral path ending at one of them,
+    collision-free (checked independently here), the palm facing the block along the radial."""
+    world = World.build(episode_scene("random", 25, 1))
+    target = ReachTarget.from_world(world, "hexagon_0")
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    checker = CollisionChecker(world, hand_q=PRESHAPE)
+    ((pos, rot),) = goal_poses(target, base)["lateral"]
+    assert solve_goal(checker, "lateral", [(pos, rot)], world.arm_qpos()) is None
+    # why: the nominal IK solutions exist, and what they hit is the arm itself
+    ik = checker.solve_ik(pos, rot, world.arm_qpos())
+    assert ik.found and checker.collides(ik.q)
+    names = [
+        (checker.model.geom(c.geom1).name, checker.model.geom(c.geom2).name)
+        for c in checker.data.contact[: checker.data.ncon]
+    ]
+    assert names and all(a.startswith("arm/") and b.startswith("arm/") for a, b in names)
+
+    plan = plan_coarse_reach(world, target, approaches=("lateral",))
+    assert plan.found and plan.approach == "lateral" and plan.goal is not None
+    fallbacks = lateral_fallback_poses(target, base)
+    assert any(np.allclose(plan.goal.palm_position, p) for p, _ in fallbacks)
+    assert not CollisionChecker(world, hand_q=PRESHAPE).collides(plan.goal.q)
+    palm, R = checker.palm_pose(plan.goal.q)
+    np.testing.assert_allclose(palm, plan.goal.palm_position, atol=0.005)
+    radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
+    assert R[:, 2] @ (radial / np.linalg.norm(radial)) > np.cos(np.deg2rad(5.0))
