@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from controllers.grasp.task_height import HEIGHT_TRIES
 from controllers.motion import MotionParams
 from controllers.palm_candidates import PalmPoseParams
 
@@ -49,6 +50,11 @@ class TaskConfig:
     #: Wrench Closure, although all nine hold and are delivered with the squeeze's 3-D shares
     #: (docs/task_cycle.md, "The lateral grasp in 3-D").
     lateral_grasp_3d: bool = False
+    #: With ``--model 3d``, a top grasp whose contacts the hand cannot take at the task's common
+    #: height tries the next-best common heights (by the worst-task S_G, 5 mm apart) before
+    #: going back to Posture Control: this many heights in all (1: only the task's best).
+    #: controllers.grasp.task_height.HEIGHT_TRIES, set before any result with it was seen.
+    height_tries: int = HEIGHT_TRIES
     #: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned (rad)
     #: for each. Four, not two: over random scenes 0-29 (pi) the third and fourth regrasps
     #: delivered the three episodes whose contacts stayed out of reach after two (two hexagons,

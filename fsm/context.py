@@ -164,6 +164,9 @@ class Episode:
     #: the lateral pre-shape's contacts (a FingerContacts the reach test passed at its palm
     #: pose): Fine Reach's targets and the grasp controller's start; None without one
     preshape_contacts: FingerContacts | None = None
+    #: the finished top 3-D synthesis whose next-best common heights Posture Control has
+    #: searched (once per synthesis), or None
+    heights_searched: Any | None = None
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
     @property

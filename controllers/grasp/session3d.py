@@ -5,7 +5,9 @@ The 3-D counterpart of :class:`controllers.grasp.session.GraspSynthesis`, with t
 interface (``step``, ``done``, ``converged``, ``theta``, ``finish``) plus ``heights``: the
 controller step of :func:`controllers.grasp.trials3d.run_trials_3d` (theta and height, in a band
 of heights, the pads kept apart after every step). When it finishes, the contacts' common height
-is set by the task (:func:`controllers.grasp.task_height.task_shift`) when a ``load`` is given.
+is set by the task (:func:`controllers.grasp.task_height.task_shift`) when a ``load`` is given;
+:meth:`GraspSynthesis3D.height_options` gives the next-best common heights for a hand that
+cannot take the contacts at the best one.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from controllers.grasp.polygon import Polygon
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.session import SteppedSynthesis, SynthesisStep
 from controllers.grasp.state import ControlState3D
-from controllers.grasp.task_height import task_shift
+from controllers.grasp.task_height import TaskShift, ranked_shifts, spread_shifts
 from controllers.grasp.trials import GAIN, MAX_STEPS
 from controllers.grasp.trials3d import (
     HeightBand,
@@ -84,6 +86,8 @@ class GraspSynthesis3D(SteppedSynthesis):
         self.converged = False
         self.composer.begin(1, rng)
         self._state = self._evaluate()
+        self._shifts: list[TaskShift] = []
+        self._unshifted = self._z[0].copy()
 
     def _evaluate(self) -> ControlState3D:
         return control_state_3d(
@@ -120,11 +124,32 @@ class GraspSynthesis3D(SteppedSynthesis):
         if self.done and self.load is not None:
             f = self._state.frames
             lo, hi = self._batch.z_low[0], self._batch.z_high[0]
-            self._z = (
-                self._z + task_shift(f.point[0], f.normal[0], lo, hi, self.load, self.yaw).shift
-            )
+            self._shifts = ranked_shifts(f.point[0], f.normal[0], lo, hi, self.load, self.yaw)
+            self._unshifted = self._z[0].copy()
+            self._z = self._z + self._shifts[0].shift
             self._state = self._evaluate()
         return out
+
+    def set_heights(self, heights: ArrayLike) -> None:
+        """The contacts' heights (n,) (m above the centre of mass), e.g. those the fingers took
+        in a reach test or one of :meth:`height_options`, clipped to the band; the controllers'
+        state follows."""
+        z = np.asarray(heights, dtype=float).reshape(1, -1)
+        if z.shape != self._theta.shape or not np.all(np.isfinite(z)):
+            raise GraspError(f"need {self._theta.shape[1]} finite heights, got {heights!r}")
+        self._z = self._batch.into_band(self._index, z / self._scale)
+        self._state = self._evaluate()
+
+    def height_options(self, tries: int, min_gap: float) -> list[NDArray[np.float64]]:
+        """Contact heights (n,) above the centre of mass (the polygon's unit) to try in turn,
+        best first: the task's common height (:attr:`heights`), then the next-best common shifts
+        by the worst-task S_G (:func:`~controllers.grasp.task_height.spread_shifts`), at most
+        ``tries`` in all, each at least ``min_gap`` (the polygon's unit) from the others. Only
+        :attr:`heights` before the run ends or without a task."""
+        if not self._shifts:
+            return [self.heights]
+        kept = spread_shifts(self._shifts, tries, min_gap / self._scale)
+        return [(self._unshifted + t.shift) * self._scale for t in kept]
 
     def finish(self) -> GraspScore3D:
         """Tell the composer the run ended (learning composers update on it) and score it."""

@@ -113,15 +113,6 @@ class LateralSynthesis3D(GraspSynthesis3D):
         self._theta = theta
         return moved
 
-    def set_heights(self, heights: ArrayLike) -> None:
-        """The contacts' heights (n,) (m above the centre of mass), e.g. those the fingers took
-        in a reach test, clipped to the band; the controllers' state follows."""
-        z = np.asarray(heights, dtype=float).reshape(1, -1)
-        if z.shape != self._theta.shape or not np.all(np.isfinite(z)):
-            raise GraspError(f"need {self._theta.shape[1]} finite heights, got {heights!r}")
-        self._z = self._batch.into_band(self._index, z / self._scale)
-        self._state = self._evaluate()
-
     def score_at(self, theta: ArrayLike) -> GraspScore3D:
         """S_G in 3-D (Eq. 13, 6-D wrenches, the weight's task) of contacts ``theta`` (n,) at
         the current heights."""

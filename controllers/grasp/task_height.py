@@ -7,6 +7,8 @@ decides it: a grasp must resist its task wrenches (the paper's t: gravity, a pus
 through the centre of mass tips the block about contacts above or below it. :func:`task_shift`
 moves every contact by the same shift, within the band of heights the hand reaches, to the shift
 whose worst S_G over the tasks (:func:`controllers.grasp.prism3d.worst_task_score`) is least.
+When the hand cannot take the contacts there, :func:`ranked_shifts` and :func:`spread_shifts`
+give the next-best shifts, a few millimetres apart, for the hand to try in turn.
 """
 
 from __future__ import annotations
@@ -22,6 +24,13 @@ from controllers.grasp.score3d import GraspScore3D
 
 #: Shifts tried across the band (evenly spaced, both ends included).
 SHIFTS = 9
+#: Common heights a hand tries in turn, best first by the worst-task S_G (1: only the task's
+#: best). Set before any result with it was seen: a top grasp's 2 cm band holds five heights
+#: 5 mm apart, and the task ranks the lowest first, so four reach into the upper band.
+HEIGHT_TRIES = 4
+#: The least difference (m) between two common heights tried (closer ones are nearly the same
+#: reach problem for the hand).
+HEIGHT_GAP = 0.005
 
 
 @dataclass(frozen=True)
@@ -33,7 +42,7 @@ class TaskShift:
     score: GraspScore3D
 
 
-def task_shift(
+def ranked_shifts(
     points: ArrayLike,
     normals: ArrayLike,
     z_low: float,
@@ -41,12 +50,12 @@ def task_shift(
     load: float,
     yaw: float = 0.0,
     shifts: int = SHIFTS,
-) -> TaskShift:
-    """The common height shift of contacts ``points`` (n, 3) with outward ``normals`` (n, 3),
-    keeping every height in [z_low, z_high], that minimizes the worst-task S_G (ties: the
-    smaller shift in magnitude). ``load`` and ``yaw`` as in
-    :func:`~controllers.grasp.prism3d.physical_tasks`. When the contacts span more than the
-    band, no shift is tried but 0."""
+) -> list[TaskShift]:
+    """Every common height shift tried for contacts ``points`` (n, 3) with outward ``normals``
+    (n, 3), keeping every height in [z_low, z_high], best first: the least worst-task S_G
+    first (ties within 1e-9: the smaller shift in magnitude), then the others by their worst-task
+    S_G. ``load`` and ``yaw`` as in :func:`~controllers.grasp.prism3d.physical_tasks`. When
+    the contacts span more than the band, only the shift 0 is tried."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or not np.all(np.isfinite(p)):
         raise GraspError(f"points must be a finite (n, 3) array, got shape {p.shape}")
@@ -58,12 +67,43 @@ def task_shift(
     candidates: NDArray[np.float64] = (
         np.linspace(lo, hi, shifts) if lo <= hi and shifts > 1 else np.zeros(1)
     )
-    best: TaskShift | None = None
+    tried: list[TaskShift] = []
+    best = 0
     for d in sorted(candidates, key=abs):
         q = p.copy()
         q[:, 2] += d
         stage, score = worst_task_score(q, normals, load, yaw)
-        if best is None or score.s_g < best.score.s_g - 1e-9:
-            best = TaskShift(float(d), stage, score)
-    assert best is not None
-    return best
+        tried.append(TaskShift(float(d), stage, score))
+        if score.s_g < tried[best].score.s_g - 1e-9:
+            best = len(tried) - 1
+    rest = [t for i, t in enumerate(tried) if i != best]
+    return [tried[best], *sorted(rest, key=lambda t: (t.score.s_g, abs(t.shift)))]
+
+
+def task_shift(
+    points: ArrayLike,
+    normals: ArrayLike,
+    z_low: float,
+    z_high: float,
+    load: float,
+    yaw: float = 0.0,
+    shifts: int = SHIFTS,
+) -> TaskShift:
+    """The common height shift that minimizes the worst-task S_G: the first of
+    :func:`ranked_shifts` (same arguments)."""
+    return ranked_shifts(points, normals, z_low, z_high, load, yaw, shifts)[0]
+
+
+def spread_shifts(ranked: list[TaskShift], tries: int, min_gap: float) -> list[TaskShift]:
+    """The first ``tries`` shifts of ``ranked`` (best first) that lie at least ``min_gap`` from
+    every shift kept before them: alternatives for the hand that differ enough to be worth a
+    reach test each."""
+    if tries < 1 or not (np.isfinite(min_gap) and min_gap >= 0.0):
+        raise GraspError(f"need tries >= 1 and a gap >= 0, got {tries}, {min_gap}")
+    kept: list[TaskShift] = []
+    for t in ranked:
+        if all(abs(t.shift - k.shift) >= min_gap - 1e-12 for k in kept):
+            kept.append(t)
+            if len(kept) == tries:
+                break
+    return kept

@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
             models=models,
             depth=args.depth,
             hand=args.hand,
+            height_tries=args.height_tries,
         )
         summary = write_report(
             args.out,
@@ -124,6 +125,14 @@ def build_parser() -> cli.ArgumentParser:
         metavar="M",
         help="planar model: take every contact M metres below the block's top instead of at "
         "its fingertip's height, 0.02..0.15 (the probe behind the 3-D band)",
+    )
+    ph.add_argument(
+        "--height-tries",
+        type=cli.integer(1, 5),
+        default=4,
+        metavar="N",
+        help="3-D model: common heights of the contacts the hand tries in turn, best first by "
+        "the worst-task S_G, 5 mm apart, 1..5 (1: only the task's best) (default %(default)s)",
     )
     ph.add_argument(
         "--hand",

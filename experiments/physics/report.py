@@ -14,7 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from controllers.grasp.objects import PAPER_OBJECTS
+from controllers.grasp.task_height import HEIGHT_TRIES
 from experiments.physics.compare import measures_figure, measures_section
+from experiments.physics.heights import height_section
 from experiments.physics.roc import Roc, rates_at, roc
 from experiments.physics.study import (
     DIRECTIONS,
@@ -48,9 +50,10 @@ def jobs_for(
     models: Sequence[str] = ("planar",),
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
+    height_tries: int = HEIGHT_TRIES,
 ) -> list[Job]:
     """The study's chunks: per model, object and controller (the same starts for every model),
-    with the ``hand`` on the arm."""
+    with the ``hand`` on the arm and, in 3-D, up to ``height_tries`` common heights tried."""
     out = []
     for model in models:
         for obj in objects:
@@ -58,7 +61,9 @@ def jobs_for(
             for ci, ctrl in enumerate(CONTROLLERS):
                 for start in range(0, grasps, CHUNK):
                     idx = tuple(range(start, min(grasps, start + CHUNK)))
-                    out.append(Job(obj, o_index, ctrl, ci, idx, seed, model, depth, hand))
+                    out.append(
+                        Job(obj, o_index, ctrl, ci, idx, seed, model, depth, hand, height_tries)
+                    )
     return out
 
 
@@ -71,10 +76,11 @@ def run_study(
     models: Sequence[str] = ("planar",),
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
+    height_tries: int = HEIGHT_TRIES,
 ) -> list[dict]:
     """Every grasp, in a fixed order (model, object, controller, index) whatever the workers,
-    taken by the ``hand`` ("servo" or "tendon")."""
-    jobs = jobs_for(objects, grasps, seed, models, depth, hand)
+    taken by the ``hand`` ("servo" or "tendon"); ``height_tries`` as in :func:`jobs_for`."""
+    jobs = jobs_for(objects, grasps, seed, models, depth, hand, height_tries)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:
@@ -309,6 +315,7 @@ def write_report(
             for m in models
         ),
         "",
+        *height_section(results),
         *compare_md,
         "",
         "## S_G of the synthesized contacts as a predictor (tested grasps, all models)",

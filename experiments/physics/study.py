@@ -37,6 +37,7 @@ from controllers.errors import ReachError
 from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
+from controllers.grasp.task_height import HEIGHT_TRIES
 from controllers.grip import GRIP_FORCE, close, plan_grip, squeeze
 from controllers.reach import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
@@ -89,6 +90,11 @@ class GraspOutcome:
     theta: list[float] = field(default_factory=list)  #: final contact coordinates
     #: 3-D model: the controller's contact heights above the block's centre of mass (m)
     heights: list[float] = field(default_factory=list)
+    #: 3-D model: which of the common heights offered the hand took (0: the task's best; the
+    #: last tried when none was reachable)
+    height_rank: int = 0
+    #: 3-D model: how far (m) the hand's common height is above the task's best (0 at rank 0)
+    height_raise: float | None = None
     steps: int = 0
     converged: bool = False
     s_g: float | None = None  #: None: the S_G LP is infeasible
@@ -286,9 +292,12 @@ def test_grasp(
     out: GraspOutcome,
     snapshot: Snapshot | None = None,
     depth: float | None = None,
+    height_tries: int = HEIGHT_TRIES,
 ) -> GraspOutcome:
     """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``.
-    ``depth`` (planar model): every contact that far (m) below the top."""
+    ``depth`` (planar model): every contact that far (m) below the top. 3-D model: the hand
+    tries up to ``height_tries`` common heights of the contacts, best first, and takes the first
+    it reaches (:attr:`GraspOutcome.height_rank`)."""
     world = sw.world
     world.reset()
     spec = world.scene.block(sw.name)
@@ -303,16 +312,23 @@ def test_grasp(
         rng,
         load=load,
         yaw=-sw.target.yaw,
+        height_tries=height_tries,
     )
     out.theta = [round(float(t), 6) for t in syn.theta]
     out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
     heights = None if depth is None else np.full(len(syn.theta), sw.target.top_z - depth)
-    if syn.heights is not None:
-        out.heights = [round(float(z), 6) for z in syn.heights]
-        heights = sw.target.top_z - 0.5 * spec.height + syn.heights
-    placed = place_hand(
-        world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
-    )
+    options = [heights] if syn.heights is None else list(syn.height_options or (syn.heights,))
+    for rank, option in enumerate(options):
+        if syn.heights is not None:
+            out.heights = [round(float(z), 6) for z in option]
+            heights = sw.target.top_z - 0.5 * spec.height + option
+            out.height_raise = round(float(np.mean(option - options[0])), 6)
+        out.height_rank = rank
+        placed = place_hand(
+            world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
+        )
+        if placed.reachable:
+            break
     if not placed.reachable:
         out.result, out.reason = "unreachable", placed.reason
         return out
@@ -384,6 +400,8 @@ class Job:
     depth: float | None = None
     #: the hand on the arm (``World.build``'s kinds; --hand)
     hand: str = DEFAULT_HAND
+    #: 3-D model: common heights tried in turn (--height-tries; 1: only the task's best)
+    height_tries: int = HEIGHT_TRIES
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -401,6 +419,6 @@ def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
         o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model, depth=job.depth)
-        test_grasp(sw, composer, rng, o, snapshot, depth=job.depth)
+        test_grasp(sw, composer, rng, o, snapshot, depth=job.depth, height_tries=job.height_tries)
         out.append(o.to_json())
     return out

@@ -8,7 +8,8 @@
   (:data:`TOP_GRASP_DEPTHS`); the initial heights are drawn uniform in the band after the same
   theta draw; the pad spacing as in the planar synthesis (after every step); then the physical
   test's task wrenches set the contacts' common height (:mod:`controllers.grasp.task_height`).
-  The hand takes each contact at its own height.
+  The hand takes each contact at its own height; when it cannot, the next-best common heights
+  (:data:`HEIGHT_TRIES` in all, :data:`HEIGHT_GAP` apart) are tried in turn.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from controllers.grasp.composition import Composer
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.session import GraspSynthesis
 from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.task_height import HEIGHT_GAP, HEIGHT_TRIES
 from controllers.grasp.trials3d import HeightBand
 from controllers.hand_reach import CONTACT_SEPARATION
 from hand_sim import robot
@@ -41,6 +43,8 @@ class Synthesis:
     s_g: float | None
     steps: int
     converged: bool
+    #: 3-D: the contact heights (m above the centre of mass) to try in turn, ``heights`` first
+    height_options: tuple[NDArray[np.float64], ...] = ()
 
 
 def grasp_depths(model: str) -> tuple[float, ...]:
@@ -63,11 +67,13 @@ def synthesize(
     *,
     load: float,
     yaw: float,
+    height_tries: int = HEIGHT_TRIES,
 ) -> Synthesis:
     """Run the ``model``'s controller (module docstring) from ``theta_initial``. In 3-D the
     contacts' common height is then set by the physical test's tasks
     (:func:`controllers.grasp.task_height.task_shift`, ``load`` = m*g over the grip force per
-    finger, ``yaw`` = the world x axis's angle in the block's frame)."""
+    finger, ``yaw`` = the world x axis's angle in the block's frame) and up to ``height_tries``
+    common heights are offered, best first."""
     if model == "planar":
         syn = GraspSynthesis(
             polygon,
@@ -101,4 +107,5 @@ def synthesize(
         syn3.step()
     score3 = syn3.finish()
     s_g = float(score3.s_g) if score3.feasible else None
-    return Synthesis(syn3.theta, syn3.heights, s_g, syn3.steps, bool(syn3.converged))
+    options = tuple(syn3.height_options(height_tries, HEIGHT_GAP))
+    return Synthesis(syn3.theta, syn3.heights, s_g, syn3.steps, bool(syn3.converged), options)

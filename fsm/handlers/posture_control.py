@@ -9,6 +9,9 @@ from collections.abc import Iterator
 import numpy as np
 
 from controllers.cspace import CollisionChecker
+from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.session_lateral import LateralSynthesis3D
+from controllers.grasp.task_height import HEIGHT_GAP
 from controllers.grip import PRE_CONTACT
 from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, ranked_assignments
 from controllers.motion import approach, approach_touches, reposition
@@ -51,6 +54,12 @@ def posture_control(ep: Episode) -> Step:
     if ep.record.posture_retries > MAX_POSTURE_RETRIES:
         return regrasp_or_fail(ep)
     found = reachable_posture(ep)
+    raised = ""
+    if not found.found:
+        higher = search_other_heights(ep)
+        if higher is not None:
+            found, up = higher
+            raised = f", at the task's next-best common height ({up * 1000:+.0f} mm)"
     if not found.found:
         if ep.record.posture_retries >= MAX_POSTURE_RETRIES:
             return regrasp_or_fail(ep)
@@ -94,8 +103,37 @@ def posture_control(ep: Episode) -> Step:
     return Step(
         State.WRENCH_CLOSURE,
         f"arm reconfigured (search from {found.label}) so that the contacts are within reach"
+        + raised
         + touched,
     )
+
+
+def search_other_heights(ep: Episode) -> tuple[PalmPoseResult, float] | None:
+    """When no arm posture reaches a finished top 3-D grasp's contacts at the task's common
+    height: the palm-pose search at each next-best common height in turn
+    (:meth:`~controllers.grasp.session3d.GraspSynthesis3D.height_options`,
+    ``config.height_tries`` in all, :data:`~controllers.grasp.task_height.HEIGHT_GAP` apart),
+    once per synthesis. The first posture found, with how far (m) its height is above the
+    task's; the controller keeps that height. None (the task's height kept) when none is found
+    or the grasp is planar, lateral or still moving."""
+    syn = ep.synthesis
+    if (
+        slides(ep)
+        or not isinstance(syn, GraspSynthesis3D)
+        or isinstance(syn, LateralSynthesis3D)
+        or not syn.done
+        or ep.heights_searched is syn
+    ):
+        return None
+    ep.heights_searched = syn
+    options = syn.height_options(ep.config.height_tries, HEIGHT_GAP)
+    for option in options[1:]:
+        syn.set_heights(option)
+        found = reachable_posture(ep)
+        if found.found:
+            return found, float(np.mean(option - options[0]))
+    syn.set_heights(options[0])
+    return None
 
 
 def reachable_posture(ep: Episode) -> PalmPoseResult:

@@ -3,6 +3,7 @@ verdicts against the block's measured motion, the ROC against an independent cou
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import os
@@ -131,6 +132,27 @@ def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> No
         assert alone == pooled
 
 
+@pytest.mark.e2e
+def test_a_3d_grasp_out_of_reach_at_the_tasks_height_is_taken_and_held_higher_up() -> None:
+    """Seed 0, irregular hexagon, KB grasp 1: the hand cannot take its contacts at the task's
+    best common height (the lowest); tried higher in turn, it takes them 5 mm or more up, all
+    together, and the block is held through the physical test."""
+    from controllers.grasp.objects import PAPER_OBJECTS
+    from controllers.grasp.task_height import HEIGHT_GAP
+
+    obj = "irregular_hexagon"
+    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (1,), 0, "3d")
+    [only] = run_job(dataclasses.replace(job, height_tries=1))
+    [tried] = run_job(job)
+    assert only["result"] == "unreachable" and only["height_rank"] == 0
+    assert tried["height_rank"] >= 1 and tried["result"] == "held"
+    raised = np.subtract(tried["heights"], only["heights"])
+    np.testing.assert_allclose(raised, raised[0], atol=2e-6)  # moved together
+    assert raised[0] >= HEIGHT_GAP - 1e-6
+    assert tried["height_raise"] == pytest.approx(raised[0], abs=2e-6)
+    assert max(tried["turn"].values()) <= MAX_TURN and max(tried["shift"].values()) <= MAX_SHIFT
+
+
 def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() -> None:
     """The grasp the old fixed-palm placement never reached (one contact per face: two fingers
     would take faces their pads turn away from), checked by the kinematics, not the verdict."""
@@ -194,6 +216,8 @@ def test_bad_objects_are_refused_with_one_line_and_nothing_written(tmp_path: Pat
     [
         (("--model", "3d", "--depth", "0.06"), "--depth"),
         (("--depth", "0.5"), "--depth"),
+        (("--model", "3d", "--height-tries", "0"), "--height-tries"),
+        (("--model", "3d", "--height-tries", "six"), "--height-tries"),
         (("--model", "flat"), "--model"),
     ],
 )
