@@ -5,9 +5,9 @@ The 3-D counterpart of :class:`controllers.grasp.session.GraspSynthesis`, with t
 interface (``step``, ``done``, ``converged``, ``theta``, ``finish``) plus ``heights``: the
 controller step of :func:`controllers.grasp.trials3d.run_trials_3d` (theta and height, in a band
 of heights, the pads kept apart after every step). When it finishes, the contacts' common height
-is set by the task (:func:`controllers.grasp.task_height.task_shift`) when a ``load`` is given;
-:meth:`GraspSynthesis3D.height_options` gives the next-best common heights for a hand that
-cannot take the contacts at the best one.
+is set by the task (the first of :func:`controllers.grasp.task_height.ranked_shifts`) when a
+``load`` is given; :meth:`GraspSynthesis3D.height_options` gives the next-best common heights
+for a hand that cannot take the contacts at the best one.
 """
 
 from __future__ import annotations

@@ -4,11 +4,12 @@ The null-grasp controllers (:mod:`controllers.grasp.trials3d`) leave one directi
 free: raising or lowering every contact together changes neither eps_FC nor, once the contacts'
 unit normal forces balance, eps_MC (their moments about any point are then the same). The task
 decides it: a grasp must resist its task wrenches (the paper's t: gravity, a push), and a push
-through the centre of mass tips the block about contacts above or below it. :func:`task_shift`
-moves every contact by the same shift, within the band of heights the hand reaches, to the shift
-whose worst S_G over the tasks (:func:`controllers.grasp.prism3d.worst_task_score`) is least.
-When the hand cannot take the contacts there, :func:`ranked_shifts` and :func:`spread_shifts`
-give the next-best shifts, a few millimetres apart, for the hand to try in turn.
+through the centre of mass tips the block about contacts above or below it. :func:`ranked_shifts`
+ranks the shifts that move every contact by the same amount, within the band of heights the hand
+reaches, by their worst S_G over the tasks (:func:`controllers.grasp.prism3d.worst_task_score`);
+the task's shift is the first (the least). When the hand cannot take the contacts there,
+:func:`spread_shifts` gives the next-best shifts, a few millimetres apart, for the hand to try
+in turn.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def ranked_shifts(
     (n, 3), keeping every height in [z_low, z_high], best first: the least worst-task S_G
     first (ties within 1e-9: the smaller shift in magnitude), then the others by their worst-task
     S_G. ``load`` and ``yaw`` as in :func:`~controllers.grasp.prism3d.physical_tasks`. When
-    the contacts span more than the band, only the shift 0 is tried."""
+    the contacts span the band or more, only the shift 0 is tried."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or not np.all(np.isfinite(p)):
         raise GraspError(f"points must be a finite (n, 3) array, got shape {p.shape}")
@@ -65,7 +66,7 @@ def ranked_shifts(
         raise GraspError(f"shifts must be >= 1, got {shifts}")
     lo, hi = z_low - p[:, 2].min(), z_high - p[:, 2].max()
     candidates: NDArray[np.float64] = (
-        np.linspace(lo, hi, shifts) if lo <= hi and shifts > 1 else np.zeros(1)
+        np.unique(np.linspace(lo, hi, shifts)) if lo <= hi and shifts > 1 else np.zeros(1)
     )
     tried: list[TaskShift] = []
     best = 0
@@ -78,20 +79,6 @@ def ranked_shifts(
             best = len(tried) - 1
     rest = [t for i, t in enumerate(tried) if i != best]
     return [tried[best], *sorted(rest, key=lambda t: (t.score.s_g, abs(t.shift)))]
-
-
-def task_shift(
-    points: ArrayLike,
-    normals: ArrayLike,
-    z_low: float,
-    z_high: float,
-    load: float,
-    yaw: float = 0.0,
-    shifts: int = SHIFTS,
-) -> TaskShift:
-    """The common height shift that minimizes the worst-task S_G: the first of
-    :func:`ranked_shifts` (same arguments)."""
-    return ranked_shifts(points, normals, z_low, z_high, load, yaw, shifts)[0]
 
 
 def spread_shifts(ranked: list[TaskShift], tries: int, min_gap: float) -> list[TaskShift]:

@@ -71,9 +71,9 @@ def synthesize(
 ) -> Synthesis:
     """Run the ``model``'s controller (module docstring) from ``theta_initial``. In 3-D the
     contacts' common height is then set by the physical test's tasks
-    (:func:`controllers.grasp.task_height.task_shift`, ``load`` = m*g over the grip force per
-    finger, ``yaw`` = the world x axis's angle in the block's frame) and up to ``height_tries``
-    common heights are offered, best first."""
+    (the first of :func:`controllers.grasp.task_height.ranked_shifts`, ``load`` = m*g over the
+    grip force per finger, ``yaw`` = the world x axis's angle in the block's frame) and up to
+    ``height_tries`` common heights are offered, best first."""
     if model == "planar":
         syn = GraspSynthesis(
             polygon,

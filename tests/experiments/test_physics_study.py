@@ -258,3 +258,11 @@ def test_the_demand_recomputed_from_the_results_file_is_the_studys_own(quick, ca
     printed = capsys.readouterr().out
     assert all(f"{v.name}: pooled" in printed for v in VARIANTS)
     assert main([str(out / "missing.jsonl")]) == 2
+
+
+def test_the_height_tries_flag_defaults_to_the_libraries_constant() -> None:
+    from controllers.grasp.task_height import HEIGHT_TRIES
+    from experiments.physics.cli import build_parser
+
+    assert build_parser().parse_args(["--out", "x"]).height_tries == HEIGHT_TRIES
+    assert build_parser().parse_args(["--out", "x", "--height-tries", "1"]).height_tries == 1

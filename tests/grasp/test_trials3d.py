@@ -11,7 +11,7 @@ from controllers.grasp.errors import GraspError
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object, random_convex_polygon
 from controllers.grasp.prism3d import worst_task_score
 from controllers.grasp.registry import make_composer
-from controllers.grasp.task_height import task_shift
+from controllers.grasp.task_height import ranked_shifts
 from controllers.grasp.trials import run_trials
 from controllers.grasp.trials3d import (
     HeightBand,
@@ -148,7 +148,7 @@ def test_the_task_lowers_a_grasp_above_the_centre_of_mass_to_its_lowest_worst_ta
     z = np.full((1, 4), 3.0)  # 6 cm above the centre of mass, unit-moment frame (2 cm unit)
     frames = batch.locate(np.zeros(1, dtype=np.int64), theta, z)
     p, n = frames.point[0], frames.normal[0]
-    chosen = task_shift(p, n, 1.0, 4.0, load=0.5)
+    chosen = ranked_shifts(p, n, 1.0, 4.0, load=0.5)[0]
     # independently: every shift on a fine grid scores no better than the one chosen
     for d in np.linspace(-2.0, 1.0, 13):
         q = p.copy()
@@ -156,7 +156,7 @@ def test_the_task_lowers_a_grasp_above_the_centre_of_mass_to_its_lowest_worst_ta
         assert worst_task_score(q, n, 0.5)[1].s_g >= chosen.score.s_g - 1e-7
     assert chosen.shift == pytest.approx(-2.0)  # as low as the band allows
     # a band the contacts already fill leaves them where they are
-    assert task_shift(p, n, 3.0, 3.0, load=0.5).shift == 0.0
+    assert [t.shift for t in ranked_shifts(p, n, 3.0, 3.0, load=0.5)] == [0.0]
 
 
 @pytest.mark.parametrize(
@@ -168,8 +168,8 @@ def test_the_task_lowers_a_grasp_above_the_centre_of_mass_to_its_lowest_worst_ta
         (lambda: PrismBatch.of(POLYGONS[:2], [0.2]), "heights"),
         (lambda: PrismBatch.of(POLYGONS[:1], [-0.2]), "positive"),
         (lambda: PrismBatch.of(POLYGONS[:1], [0.2], [HeightBand(0.0, 0.3)]), "above its prism"),
-        (lambda: task_shift(np.zeros((4, 2)), np.zeros((4, 3)), 0.0, 1.0, 0.5), "(n, 3)"),
-        (lambda: task_shift(np.zeros((4, 3)), np.zeros((4, 3)), 1.0, 0.0, 0.5), "interval"),
+        (lambda: ranked_shifts(np.zeros((4, 2)), np.zeros((4, 3)), 0.0, 1.0, 0.5), "(n, 3)"),
+        (lambda: ranked_shifts(np.zeros((4, 3)), np.zeros((4, 3)), 1.0, 0.0, 0.5), "interval"),
     ],
 )
 def test_bad_input_raises_a_grasp_error_naming_the_problem(make, message):
