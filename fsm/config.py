@@ -50,10 +50,11 @@ class TaskConfig:
     #: Wrench Closure, although all nine hold and are delivered with the squeeze's 3-D shares
     #: (docs/task_cycle.md, "The lateral grasp in 3-D").
     lateral_grasp_3d: bool = False
-    #: With ``--model 3d``, a top grasp whose contacts the hand cannot take at the task's common
-    #: height tries the next-best common heights (by the worst-task S_G, 5 mm apart) before
-    #: going back to Posture Control: this many heights in all (1: only the task's best).
-    #: controllers.grasp.task_height.HEIGHT_TRIES, set before any result with it was seen.
+    #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
+    #: contacts at the task's common height, it searches at the next-best common heights (by
+    #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only
+    #: the task's). controllers.grasp.task_height.HEIGHT_TRIES, set before any result with it
+    #: was seen (docs/grasp3d_physics.md, "The next-best common heights in the task cycle").
     height_tries: int = HEIGHT_TRIES
     #: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned (rad)
     #: for each. Four, not two: over random scenes 0-29 (pi) the third and fourth regrasps

@@ -27,7 +27,8 @@ from controllers.grasp.score3d import GraspScore3D
 SHIFTS = 9
 #: Common heights a hand tries in turn, best first by the worst-task S_G (1: only the task's
 #: best). Set before any result with it was seen: a top grasp's 2 cm band holds five heights
-#: 5 mm apart, and the task ranks the lowest first, so four reach into the upper band.
+#: 5 mm apart, and the task ranks the lowest first, so four reach into the upper band (the
+#: contacts' own spread, about 5 mm, leaves room for three on most grasps).
 HEIGHT_TRIES = 4
 #: The least difference (m) between two common heights tried (closer ones are nearly the same
 #: reach problem for the hand).

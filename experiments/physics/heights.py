@@ -1,5 +1,5 @@
 """The common heights the hand took in the 3-D study: how many grasps the hand placed at the
-task's best height and at each next-best one (:data:`experiments.physics.synthesis.HEIGHT_TRIES`),
+task's best height and at each next-best one (:data:`controllers.grasp.task_height.HEIGHT_TRIES`),
 and how often those held."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ def height_section(results: list[dict]) -> list[str]:
     rs = [r for r in results if r.get("model") == "3d"]
     if not rs:
         return []
-    placed = [r for r in rs if r["result"] not in ("unreachable",)]
+    placed = [r for r in rs if r["result"] != "unreachable"]
     lines = [
         "### 3-D: the common height the hand took",
         "",

@@ -266,3 +266,27 @@ def test_the_height_tries_flag_defaults_to_the_libraries_constant() -> None:
 
     assert build_parser().parse_args(["--out", "x"]).height_tries == HEIGHT_TRIES
     assert build_parser().parse_args(["--out", "x", "--height-tries", "1"]).height_tries == 1
+
+
+def test_the_height_table_counts_each_rank_and_the_grasps_no_height_reached() -> None:
+    from experiments.physics.heights import height_section
+
+    def grasp(rank: int, result: str, raise_m: float | None) -> dict:
+        return {"model": "3d", "height_rank": rank, "result": result, "height_raise": raise_m}
+
+    results = [
+        grasp(0, "held", 0.0),
+        grasp(0, "dropped", 0.0),
+        grasp(1, "held", 0.006),
+        grasp(2, "held", 0.012),
+        grasp(2, "not closed", 0.014),
+        grasp(2, "unreachable", 0.013),
+        {"model": "planar", "result": "held"},
+    ]
+    lines = height_section(results)
+    rows = {line.split("|")[1].strip(): line for line in lines if line.startswith("| ")}
+    assert rows["0"].startswith("| 0 | 2 | 2 | 1 / 2 ")
+    assert rows["1"].startswith("| 1 | 1 | 1 | 1 / 1 ") and rows["1"].endswith("| 6.0 |")
+    assert rows["2"].startswith("| 2 | 2 | 1 | 1 / 1 ") and rows["2"].endswith("| 13.0 |")
+    assert "Reached at no height: 1 of 6 3-D grasps." in lines
+    assert height_section([{"model": "planar", "result": "held"}]) == []
