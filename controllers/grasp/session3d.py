@@ -87,7 +87,7 @@ class GraspSynthesis3D(SteppedSynthesis):
         self.composer.begin(1, rng)
         self._state = self._evaluate()
         self._shifts: list[TaskShift] = []
-        self._unshifted = self._z[0].copy()
+        self._unshifted: NDArray[np.float64] | None = None  # heights before the task's shift
 
     def _evaluate(self) -> ControlState3D:
         return control_state_3d(
@@ -146,7 +146,7 @@ class GraspSynthesis3D(SteppedSynthesis):
         by the worst-task S_G (:func:`~controllers.grasp.task_height.spread_shifts`), at most
         ``tries`` in all, each at least ``min_gap`` (the polygon's unit) from the others. Only
         :attr:`heights` before the run ends or without a task."""
-        if not self._shifts:
+        if self._unshifted is None:
             return [self.heights]
         kept = spread_shifts(self._shifts, tries, min_gap / self._scale)
         return [(self._unshifted + t.shift) * self._scale for t in kept]
