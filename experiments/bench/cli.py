@@ -194,7 +194,14 @@ def parser() -> ArgumentParser:
         action="store_true",
         help="keep --out's results.jsonl and run only the seeds not in it",
     )
-    ap.add_argument("--keep-rrd", action="store_true", help="keep the recordings of successes too")
+    ap.add_argument(
+        "--keep-rrd",
+        action="store_true",
+        help=(
+            "record every episode and keep the recordings of successes too (default: episodes "
+            "run unrecorded; a failed one is run again, recorded, for its .rrd)"
+        ),
+    )
     ap.add_argument(
         "--models",
         default=None,

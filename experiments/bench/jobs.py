@@ -13,6 +13,7 @@ seed alone, so that it does not depend on which worker runs the seed or in what 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -93,16 +94,46 @@ def _limit_threads(controller: str) -> None:
         torch.set_num_threads(1)
 
 
+#: Fields of two runs of one job that must agree for a replay to be the same episode.
+SAME_EPISODE = ("success", "failure", "failure_detail", "sim_time", "cycles")
+
+
 def run_job(job: Job) -> JobResult:
-    """Run ``job``'s episode (recorded, in a temporary folder) and return its ``results.jsonl``
-    line: the episode's ``summary.json`` plus ``seed`` and ``blocks`` (the scene's block count).
+    """Run ``job``'s episode (in a temporary folder) and return its ``results.jsonl`` line: the
+    episode's ``summary.json`` plus ``seed`` and ``blocks`` (the scene's block count).
     ``options.out`` is null (the folder is gone) and ``rrd`` names the kept recording, if any.
+
+    The episode runs without recording unless ``job.keep_rrd`` (recording every episode costs
+    about a quarter of its wall time, docs/bench.md); a failed one is then run again, recorded,
+    for its ``.rrd`` (an episode is a function of its seed and options, and the recording does
+    not touch the physics). The line is the first run's; ``replay`` says whether the recorded
+    run ended the same (:data:`SAME_EPISODE`), and its summary is kept under ``replay`` when not.
 
     An exception other than Ctrl-C outside the task cycle's states (the episode names any inside
     them) does not stop the bench: the line then says ``failure = "episode crashed"`` with the
     exception in ``failure_detail`` and ``traceback``."""
-    from fsm.context import DEFAULT_GRASP_MODEL, EpisodeOptions, out_paths
     from fsm.layout import episode_scene
+
+    n_blocks: int | None = job.blocks
+    with contextlib.suppress(Exception):  # the episode's own run reports it
+        n_blocks = len(episode_scene(job.scene, job.seed, job.blocks).blocks)
+    summary, rrd = _episode(job, record=job.keep_rrd)
+    if not summary["success"] and rrd is None:
+        again, rrd = _episode(job, record=True)
+        same = all(again.get(k) == summary.get(k) for k in SAME_EPISODE)
+        summary["replay"] = {"recorded": rrd is not None, "same": same}
+        if not same:
+            summary["replay"]["summary"] = again
+    keep = rrd is not None and (job.keep_rrd or not summary["success"])
+    summary["rrd"] = rrd_name(job.seed) if keep else None
+    line = {"seed": job.seed, "blocks": n_blocks, **summary}
+    return JobResult(job.seed, line, rrd if keep else None)
+
+
+def _episode(job: Job, *, record: bool) -> tuple[dict[str, Any], bytes | None]:
+    """One run of ``job``'s episode in a temporary folder: its summary (with the options the
+    bench varies) and, when ``record`` and it was written, its recording's bytes."""
+    from fsm.context import DEFAULT_GRASP_MODEL, EpisodeOptions, out_paths
     from fsm.machine import run_episode
 
     with tempfile.TemporaryDirectory(prefix="graspsim-bench-") as tmp:
@@ -116,15 +147,13 @@ def run_job(job: Job) -> JobResult:
             cycles=job.cycles,
             place_fallback=job.place_fallback,
             out=Path(tmp),
-            record=True,
+            record=record,
             models=None if job.models is None else Path(job.models),
             hand=job.hand,
         )
         rrd_path, summary_path = out_paths(options.out)
         extra: dict[str, Any] = {}
-        n_blocks: int | None = job.blocks
         try:
-            n_blocks = len(episode_scene(job.scene, job.seed, job.blocks).blocks)
             _limit_threads(job.controller)
             run_episode(options)
         except Exception as e:  # any bug of one episode must not stop the bench
@@ -143,10 +172,8 @@ def run_job(job: Job) -> JobResult:
         summary.setdefault("options", {}).update(
             {"scene": job.scene, "seed": job.seed, "controller": job.controller, "out": None}
         )
-        keep = rrd_path.is_file() and (job.keep_rrd or not summary["success"])
-        summary["rrd"] = rrd_name(job.seed) if keep else None
-        line = {"seed": job.seed, "blocks": n_blocks, **summary}
-        return JobResult(job.seed, line, rrd_path.read_bytes() if keep else None)
+        rrd = rrd_path.read_bytes() if record and rrd_path.is_file() else None
+        return summary, rrd
 
 
 # --- results.jsonl ----------------------------------------------------------------------------

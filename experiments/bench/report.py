@@ -273,6 +273,13 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
             "before the judge existed. The recording of every failed episode is in "
             "`rrd/seed-NNNNNN.rrd`.",
         ]
+        if s.replayed:
+            differs = ", ".join(str(x) for x in s.replay_differs) or "none"
+            out += [
+                "",
+                f"{s.replayed} failed episodes ran unrecorded, then again recorded for their "
+                f"`.rrd`; replays that ended differently from the counted run: {differs}.",
+            ]
     else:
         out.append("No episode failed.")
     out += ["", f"![failure reasons]({FIGURES['failures']})", "", "## Place error", ""]
@@ -297,7 +304,13 @@ def markdown(s: BenchSummary, settings: dict[str, Any]) -> str:
         "## Wall time per state",
         "",
         "Seconds of wall-clock time (noisy on shared cores); per episode is the total over the "
-        "bench's episodes divided by their number.",
+        "bench's episodes divided by their number. "
+        + (
+            f"{s.recorded} of the {s.episodes} counted runs recorded an `.rrd` (its rendering "
+            "and logging are in their times); the others ran unrecorded."
+            if s.recorded
+            else "The counted runs were not recorded (no rendering or logging in these times)."
+        ),
         "",
         "| state | visits | episodes | mean per visit | p95 per visit | mean per episode |",
         "|---|---|---|---|---|---|",

@@ -162,6 +162,11 @@ class BenchSummary:
     tables_cleared: int = 0
     #: (approach of the first cycle, episodes, successes); "none" when no coarse path was found
     by_approach: tuple[tuple[str, int, int], ...] = ()
+    #: failed episodes run again, recorded, for their .rrd, and the seeds whose replay ended
+    #: differently (see :func:`experiments.bench.jobs.run_job`)
+    replayed: int = 0
+    replay_differs: tuple[int, ...] = ()
+    recorded: int = 0  #: episodes whose wall times include recording
 
 
 def first_approach(line: dict[str, Any]) -> str:
@@ -258,6 +263,11 @@ def summarize(lines: Sequence[dict[str, Any]]) -> BenchSummary:
         seeds=tuple(sorted(unique)),
         elsewhere=kinds.count(ELSEWHERE),
         cycles=cycle_rows(eps),
+        replayed=sum("replay" in e for e in eps),
+        replay_differs=tuple(
+            int(e["seed"]) for e in eps if "replay" in e and not e["replay"].get("same")
+        ),
+        recorded=sum(bool((e.get("options") or {}).get("record", True)) for e in eps),
         tables_cleared=sum(table_cleared(e) for e in eps),
         by_approach=tuple((a, n, k) for a, (n, k) in sorted(approaches.items())),
     )

@@ -336,6 +336,8 @@ def test_a_bug_in_a_state_is_an_internal_error_with_its_recording(tmp_path, monk
     assert "RuntimeError: a bug in Select/Model" in line["failure_detail"]
     assert "\n" not in line["failure_detail"] and "in bug" in line["traceback"]
     assert line["rrd"] == "rrd/seed-000002.rrd" and result.rrd is not None and len(result.rrd) > 0
+    # the episode ran unrecorded, then again recorded for its .rrd, and ended the same way
+    assert line["options"]["record"] is False and line["replay"] == {"recorded": True, "same": True}
     assert line["options"]["out"] is None and line["visits"][0]["state"] == "Select/Model"
     assert line["visits"][0]["next"] == "Failed"
 
@@ -385,8 +387,10 @@ def test_two_workers_write_results_recordings_and_report(two_workers: Path) -> N
         if line["success"]:  # judged physically: the block where it was asked to go
             assert line["cycles"][0]["judgement"]["place_error_mm"] < 20.0
             assert line["rrd"] is None and f"seed-{seed:06d}.rrd" not in kept
+            assert "replay" not in line and line["options"]["record"] is False  # not recorded
         else:
             assert (two_workers / line["rrd"]).stat().st_size > 0
+            assert line["replay"]["recorded"] and line["replay"]["same"]
     assert json.loads((two_workers / "bench.json").read_text())["blocks"] == "3:5"
     check_report(two_workers)
     assert not [p for p in two_workers.iterdir() if p.name.startswith(".")]
