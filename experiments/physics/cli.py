@@ -13,6 +13,7 @@ import time
 from collections.abc import Sequence
 
 from controllers.grasp.objects import PAPER_OBJECTS
+from controllers.grasp.task_height import HEIGHT_GAP, HEIGHT_TRIES
 from graspsim_base import cli
 from hand_sim.clitools import ERRORS
 
@@ -129,10 +130,11 @@ def build_parser() -> cli.ArgumentParser:
     ph.add_argument(
         "--height-tries",
         type=cli.integer(1, 5),
-        default=4,
+        default=HEIGHT_TRIES,
         metavar="N",
         help="3-D model: common heights of the contacts the hand tries in turn, best first by "
-        "the worst-task S_G, 5 mm apart, 1..5 (1: only the task's best) (default %(default)s)",
+        f"the worst-task S_G, {HEIGHT_GAP * 1000:g} mm apart, 1..5 (1: only the task's best) "
+        "(default %(default)s)",
     )
     ph.add_argument(
         "--hand",
