@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import execute_path, plan_arm_path
+from controllers.arm_path import execute_path, first_collision, plan_arm_path
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
 from controllers.fine_reach import project_to_surface
@@ -49,6 +49,12 @@ class MotionParams:
     backoff_time: float = 0.8
     #: Clearance (m) of the harmonic path between the backed-out postures.
     reposition_clearance: float = 0.0
+    #: The arm moves between the backed-out postures in a straight joint-space line, without
+    #: planning a harmonic path, when every posture on that line (checked every
+    #: ``arm_path.VERIFY_STEP``) keeps this far (m) from the perceived world, the retracted hand
+    #: included: more than the harmonic path's ``reposition_clearance``, for the servos' lag
+    #: off the line (docs/bench.md, "Fifth pass").
+    direct_clearance: float = 0.01
     #: Times (s) of the hand's moves.
     retract_time: float = 0.4
     preshape_time: float = 0.6
@@ -183,7 +189,7 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     """Take the arm and hand to a new posture near the block without sweeping a finger through
     it: retract the fingers, back the palm out along the approach by ``backoff`` (a lateral
     hand only as far as it stays clear, :func:`clear_backoff`), move the arm to the new
-    posture backed out likewise (on a harmonic path), shape the hand there, and
+    posture backed out likewise (:func:`move_backed_out`), shape the hand there, and
     approach in a straight line."""
     world, p = site.world, site.params
     checker = CollisionChecker(world, model=site.planning)
@@ -198,15 +204,7 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     raised = checker.solve_ik(p_new - back * axis, R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
-    # the arm moves on a collision-free harmonic path (the hand keeps its retracted shape)
-    mover = CollisionChecker(
-        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
-    )
-    path = plan_arm_path(mover, world.arm_qpos(), raised.q)
-    if path.found:
-        execute_path(world, path.path, settle=0.2)
-    else:  # e.g. the backed-out hand already grazes a neighbour: straight there, in joint space
-        move_arm_and_hand(world, raised.q, world.hand_targets(), p.arm_move_time)
+    move_backed_out(site, raised.q)
     move_hand(world, hand_q, p.preshape_time)  # then opens, clear of the block
     move_palm(world, checker, back * axis, p.backoff_time)
     if not site.lateral:
@@ -220,6 +218,33 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     for _ in range(SERVO_CORRECTIONS):
         world.set_arm_targets(world.arm_targets() + arm_q - world.arm_qpos())
         world.step(settle)
+
+
+def move_backed_out(site: BlockSite, arm_q: NDArray[np.float64]) -> str:
+    """Move the arm, the hand keeping its shape, from where it is to the backed-out posture
+    ``arm_q``, and say how: ``"straight"``, in a straight joint-space line, when every posture
+    on it keeps ``direct_clearance`` from the perceived world; else ``"harmonic"``, on a
+    collision-free harmonic path (:func:`controllers.arm_path.plan_arm_path`); else
+    ``"unplanned"`` (e.g. the backed-out hand already grazes a neighbour): straight there
+    anyway."""
+    world, p = site.world, site.params
+    start = world.arm_qpos()
+    direct = np.stack([start, arm_q])
+    wide = CollisionChecker(
+        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.direct_clearance
+    )
+    if first_collision(wide, direct) is None:
+        execute_path(world, direct, settle=0.2)
+        return "straight"
+    mover = CollisionChecker(
+        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
+    )
+    path = plan_arm_path(mover, start, arm_q)
+    if path.found:
+        execute_path(world, path.path, settle=0.2)
+        return "harmonic"
+    move_arm_and_hand(world, arm_q, world.hand_targets(), p.arm_move_time)
+    return "unplanned"
 
 
 def approach_clear(

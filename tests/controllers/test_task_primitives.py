@@ -16,7 +16,7 @@ from controllers.fine_reach import fine_reach, obstacle_grid
 from controllers.finger_geometry import PerceivedPrism
 from controllers.hand_reach import MIN_PAD_SPACING, check_reach
 from controllers.harmonic import GridSpec
-from controllers.motion import BlockSite, approach_touches
+from controllers.motion import BlockSite, approach_touches, move_backed_out
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
 from controllers.posture import apply_posture, solve_posture
 from controllers.reach import PRESHAPE, ReachTarget
@@ -24,6 +24,7 @@ from controllers.transport import held_load, timed_path
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World
+from tests.controllers.conftest import hover_over_target
 
 
 def shifted(target: ReachTarget, dx: float) -> ReachTarget:
@@ -194,3 +195,27 @@ def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_t
         )
         found[with_post] = approach_touches(site, ik.q, np.asarray(PRESHAPE))
     assert found == {False: (), True: ("post",)}
+
+
+def test_the_arm_moves_between_backed_out_postures_straight_when_clear_else_harmonic() -> None:
+    """controllers.motion.move_backed_out, above clutter3's target: a small turn of the waist
+    and the wrist, well clear of everything, is taken in a straight joint-space line; with a
+    clearance no line can keep (19 cm: the block below is nearer), the way back is planned as a
+    harmonic path instead. Both end at their goal posture and push no block."""
+    world, target = hover_over_target()
+    name = world.scene.target
+    model = planning_model(
+        world, name, target.polygon, target.yaw, target.position_xy, target.top_z
+    )
+    site = BlockSite(world, model, target, world.block_body_id(name), np.array([0.0, 0.0, -1.0]))
+    blocks = [b.name for b in world.scene.blocks]
+    before = {b: world.block_pose(b)[0].copy() for b in blocks}
+    start = world.arm_qpos().copy()
+    goal = start + np.array([0.05, 0.0, 0.0, 0.0, 0.5])
+    assert move_backed_out(site, goal) == "straight"
+    assert np.abs(world.arm_qpos() - goal).max() < 0.02
+    far = dataclasses.replace(site.params, direct_clearance=0.19)
+    assert move_backed_out(dataclasses.replace(site, params=far), start) == "harmonic"
+    assert np.abs(world.arm_qpos() - start).max() < 0.02
+    for b in blocks:
+        assert np.linalg.norm(world.block_pose(b)[0] - before[b]) < 1e-3, b
