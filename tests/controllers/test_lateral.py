@@ -294,26 +294,23 @@ def test_a_lateral_hand_backs_out_only_as_far_as_it_stays_clear() -> None:
         pytest.fail("the full backoff is clear")
 
 
-@pytest.mark.parametrize("seed", [0])
+def _lateral_rectangle(out: Path, *model: str) -> tuple[int, dict]:
+    """``fsm.run`` on single_rectangle, lateral approach, kb, seed 0, unrecorded, with the
+    extra arguments ``model``: its exit status and summary."""
+    argv = ["--scene", "single_rectangle", "--approach", "lateral", "--controller", "kb"]
+    code = main([*argv, *model, "--out", str(out), "--no-record"])
+    return code, json.loads((out / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def lateral_rectangle(tmp_path_factory) -> tuple[int, dict]:
+    """The default (3-D model) lateral episode of single_rectangle, run once for the module."""
+    return _lateral_rectangle(tmp_path_factory.mktemp("lateral") / "3d")
+
+
 @pytest.mark.e2e
-def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path) -> None:
-    out = tmp_path / "lateral"
-    code = main(
-        [
-            "--scene",
-            "single_rectangle",
-            "--approach",
-            "lateral",
-            "--controller",
-            "kb",
-            "--seed",
-            str(seed),
-            "--out",
-            str(out),
-            "--no-record",
-        ]
-    )
-    s = json.loads((out / "summary.json").read_text())
+def test_a_lateral_grasp_of_the_rectangle_delivers_it(lateral_rectangle) -> None:
+    code, s = lateral_rectangle
     assert code == 0 and s["success"], s["failure_detail"]
     (cycle,) = s["cycles"]
     assert cycle["approach"] == "lateral"
@@ -323,16 +320,20 @@ def test_a_lateral_grasp_of_the_rectangle_delivers_it(seed: int, tmp_path: Path)
 
 
 @pytest.mark.e2e
-def test_the_3d_model_keeps_the_planar_lateral_grasp_by_default(tmp_path: Path) -> None:
+def test_the_3d_model_keeps_the_planar_lateral_grasp_by_default(
+    lateral_rectangle, tmp_path: Path
+) -> None:
     """Issue 20 item 5: the 3-D lateral grasp (TaskConfig.lateral_grasp_3d) is off by default
-    (docs/task_cycle.md, "The lateral grasp in 3-D"), so ``--model 3d`` and ``--model planar``
-    run the same lateral episode: the same transitions, contacts, S_G and judgement."""
+    (docs/task_cycle.md, "The lateral grasp in 3-D"), so the default ``--model 3d`` and
+    ``--model planar`` run the same lateral episode: the same transitions, contacts, S_G and
+    judgement."""
     runs = {}
-    for model in ("3d", "planar"):
-        out = tmp_path / model
-        argv = ["--scene", "single_rectangle", "--approach", "lateral", "--model", model]
-        assert main([*argv, "--out", str(out), "--no-record"]) == 0
-        s = json.loads((out / "summary.json").read_text())
+    for model, (code, s) in (
+        ("3d", lateral_rectangle),
+        ("planar", _lateral_rectangle(tmp_path / "planar", "--model", "planar")),
+    ):
+        assert code == 0
+        assert s["options"]["grasp_model"] == model
         visits = [(v["state"], v["next"], v["reason"], v["sim_seconds"]) for v in s["visits"]]
         runs[model] = (s["success"], visits, s["cycles"])
     assert runs["3d"] == runs["planar"]
