@@ -165,31 +165,83 @@ def plan_delivery(
     drop = np.array([0.0, 0.0, down_z - carry_z])
     turns = [0.0, turn, *(turn + t for t in SET_DOWN_TURNS)]
     first_failure: DeliveryPlan | None = None
-    for R in (_rotate_z(t) @ R0 for t in turns):
-        # the palm moves so that the block's centre lands above the place point
-        p_high = b0 + shift + R @ R0.T @ (p0 - b0)
-        seed = np.array([start[0] + turn, *start[1:]])
-        h = checker.solve_ik(p_high, R, seed)
-        d = checker.solve_ik(p_high + drop, R, h.q)
-        ok = h.found and d.found and not checker.collides(h.q)
-        # the set-down may graze the table only in its last 2 * clearance
-        near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
-        if not (
-            ok
-            and near.found
-            and first_collision(checker, np.stack([h.q, near.q])) is None
-            and first_collision(descent, np.stack([h.q, d.q])) is None
-        ):
+    # first every turn with the hand clear of everything by the planning clearance at the carry
+    # height and on the way down; then, if none is, every turn again lowered at
+    # SET_DOWN_CLEARANCE, from above what the hand would pass within the planning clearance of
+    # at the carry height (a neighbour as tall as the block)
+    for rise in (False, True):
+        for R in (_rotate_z(t) @ R0 for t in turns):
+            # the palm moves so that the block's centre lands above the place point
+            p_high = b0 + shift + R @ R0.T @ (p0 - b0)
+            seed = np.array([start[0] + turn, *start[1:]])
+            set_down = _set_down_path(checker, descent, p_high, drop, R, seed, rise=rise)
+            if set_down is None:
+                continue
+            # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn
+            # beside a tall neighbour at the start) gives way to the next one
+            transit = plan_arm_path(checker, start, set_down[0], resolution=resolution)
+            if transit.found:
+                break
+            first_failure = first_failure or fail(f"transit: {transit.reason}", transit)
+        else:
             continue
-        # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
-        # a tall neighbour at the start) gives way to the next one
-        transit = plan_arm_path(checker, start, h.q, resolution=resolution)
-        if transit.found:
-            down = d.q
-            break
-        first_failure = first_failure or fail(f"transit: {transit.reason}", transit)
+        break
     else:
         return first_failure or fail("no collision-free posture above the place point")
-    path = dedupe_path(np.vstack([*lead[:-1], transit.path, down[None]]))
+    down = set_down[-1]
+    path = dedupe_path(np.vstack([*lead[:-1], transit.path, set_down[1:]]))
     block_goal, _ = checker.carried_pose(down)
-    return DeliveryPlan(True, path, transit, block_goal, "reached goal")
+    reason = "reached goal"
+    if rise:
+        risen = checker.palm_pose(set_down[0])[0][2] - checker.palm_pose(set_down[-2])[0][2]
+        reason += (
+            f"; lowered keeping {SET_DOWN_CLEARANCE * 1000:.0f} mm (not "
+            f"{clearance * 1000:.0f} mm) from everything"
+            + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
+        )
+    return DeliveryPlan(True, path, transit, block_goal, reason)
+
+
+def _set_down_path(
+    checker: CollisionChecker,
+    descent: CollisionChecker,
+    p_high: NDArray[np.float64],
+    drop: NDArray[np.float64],
+    R: NDArray[np.float64],
+    seed: NDArray[np.float64],
+    *,
+    rise: bool,
+) -> NDArray[np.float64] | None:
+    """Arm postures (k, 5) from the transit's goal down to the set-down's hover, with the palm
+    at ``p_high`` (the carry height) and orientation ``R`` above the place point, or None.
+
+    Without ``rise`` the transit ends at ``p_high``, clear by ``checker``'s clearance, and the
+    set-down keeps that clearance until its last 2 * clearance (where the block nears the table)
+    and ``descent``'s all the way. With ``rise`` the way down keeps only ``descent``'s
+    clearance, and the posture at ``p_high`` may be within ``checker``'s of something: the
+    transit then ends above it, where the hand is clear (:func:`rise_until_clear`)."""
+    clearance = checker.clearance
+    h = checker.solve_ik(p_high, R, seed)
+    d = checker.solve_ik(p_high + drop, R, h.q)
+    if not (h.found and d.found):
+        return None
+    lowered = np.stack([h.q, d.q])
+    if not rise:
+        # the set-down may graze the table only in its last 2 * clearance
+        near = checker.solve_ik(p_high + drop + np.array([0.0, 0.0, 2.0 * clearance]), R, h.q)
+        if (
+            checker.collides(h.q)
+            or not near.found
+            or first_collision(checker, np.stack([h.q, near.q])) is not None
+            or first_collision(descent, lowered) is not None
+        ):
+            return None
+        return lowered
+    if first_collision(descent, lowered) is not None:
+        return None
+    if not checker.collides(h.q):
+        return lowered  # clear at the carry height, the way down only at SET_DOWN_CLEARANCE
+    risen = rise_until_clear(checker, descent, h.q)
+    if risen is None:
+        return None
+    return np.vstack([risen[::-1], lowered])

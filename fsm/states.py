@@ -104,8 +104,8 @@ TRANSITIONS: dict[State, StateSpec] = {
         StateSpec(
             State.FINE_REACH,
             "the hand is near the block in its pre-shape, top or lateral",
-            8.0,
-            (State.POSTURE_CONTROL,),
+            16.0,  # the reach takes 2-5 s; a finger held off adds the regrasp's repositioning
+            (State.POSTURE_CONTROL, State.FINE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
         StateSpec(

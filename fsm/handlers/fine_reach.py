@@ -11,13 +11,16 @@ from controllers.hand_reach import CONTACT_SEPARATION
 from controllers.planning_model import PERCEIVED_GEOM
 from fsm.context import Episode
 from fsm.handlers.common import arcs_of, side_arcs, slides
-from fsm.states import Failure, State, Step, TaskFailedError
+from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.states import Failure, State, Step
 from hand_sim import robot
 
 
 def fine_reach_state(ep: Episode) -> Step:
     """Fine Reach: harmonic fields bring each fingertip near its projection on the perceived
-    block's surface (a touch guard stops a finger that arrives early)."""
+    block's surface (a touch guard stops a finger that arrives early). A fingertip left more
+    than ``config.fine_reach_give_up`` from its point starts a regrasp
+    (:func:`fsm.handlers.regrasp.regrasp_or_fail`)."""
     world = ep.world
     config = ep.config
     # each fingertip's contact coordinate (its polar angle about the perceived centroid,
@@ -49,10 +52,13 @@ def fine_reach_state(ep: Episode) -> Step:
     )
     worst = float(result.tip_error.max())
     if not result.reached and worst > config.fine_reach_give_up:
+        # a finger held off its surface point (a neighbour, the block's edge): Figure 14's
+        # recovery, the regrasp from other contacts, until the regrasps run out
         finger = robot.FINGERS[int(np.argmax(result.tip_error))]
-        raise TaskFailedError(
-            Failure.FINGERS_CANNOT_REACH,
+        return regrasp_or_fail(
+            ep,
             f"{finger} stayed {worst * 1000:.0f} mm from its surface point",
+            Failure.FINGERS_CANNOT_REACH,
         )
     ep.posture_mode = "hold"
     return Step(

@@ -1,6 +1,6 @@
 """The regrasp (Figure 14's recovery loop back to Fine Reach): after Posture Control's retries
-the contacts stay out of reach, or in Grasp Object a finger misses the block as the hand
-closes; shared by Posture Control and Grasp Object."""
+the contacts stay out of reach, in Fine Reach a fingertip is held off its surface point, or in
+Grasp Object a finger misses the block as the hand closes; shared by those three states."""
 
 from __future__ import annotations
 
@@ -17,12 +17,14 @@ from fsm.states import Failure, State, Step, TaskFailedError
 def regrasp_or_fail(
     ep: Episode, reason: str | None = None, failure: Failure = Failure.CONTACT_UNREACHABLE
 ) -> Step:
-    """After MAX_POSTURE_RETRIES the contacts stay out of reach (or, from Grasp Object, a
-    finger missed the block as the hand closed): start again from Fine Reach with the hand
+    """After MAX_POSTURE_RETRIES the contacts stay out of reach (or, from Fine Reach, a
+    fingertip was held off its surface point; from Grasp Object, a finger missed the block as
+    the hand closed): start again from Fine Reach with the hand
     turned (top grasp: the wrist rolled by the next of ``config.regrasp_rolls``) or moved
     (lateral: the pinch pre-shape at the next palm pose beside the block,
     :func:`fsm.handlers.common.lateral_preshape`), so the grasp controller starts from other
-    contacts; after ``config.max_regrasps``, fail with ``failure`` and the reason."""
+    contacts; after ``config.max_regrasps``, or with no other palm pose or wrist turn to
+    regrasp from, fail with ``failure`` (the reason the regrasp was asked for) and the reason."""
     record = ep.record
     config = ep.config
     if reason is None:
@@ -38,9 +40,7 @@ def regrasp_or_fail(
         record.regrasps += 1
         done = lateral_preshape(ep, skip=record.regrasps)
         if done is None:
-            raise TaskFailedError(
-                Failure.CONTACT_UNREACHABLE, f"{reason}; no other palm pose to regrasp from"
-            )
+            raise TaskFailedError(failure, f"{reason}; no other palm pose to regrasp from")
         record.posture_retries = 0
         ep.synthesis = ep.contacts = ep.reach = None
         return Step(State.FINE_REACH, f"regrasp ({reason}): {done}")
@@ -62,7 +62,7 @@ def regrasp_or_fail(
         seed[-1] += np.pi if seed[-1] < 0 else -np.pi
         ik = checker.solve_ik(goal_p - backoff * goal_R[:, 2], goal_R, seed)
     if not ik.found:
-        raise TaskFailedError(Failure.CONTACT_UNREACHABLE, f"{reason}; cannot regrasp ({how})")
+        raise TaskFailedError(failure, f"{reason}; cannot regrasp ({how})")
     back = checker.solve_ik(goal_p, goal_R, ik.q)
     reposition(block_site(ep), back.q if back.found else ik.q, np.asarray(ep.coarse.hand_q))
     record.posture_retries = 0

@@ -26,11 +26,17 @@ PLANAR = "planar"
 
 
 def _random_episode(
-    seed: int, out: Path, config: TaskConfig = DEFAULT_CONFIG, grasp_model: str | None = None
+    seed: int,
+    out: Path,
+    config: TaskConfig = DEFAULT_CONFIG,
+    grasp_model: str | None = None,
+    hand: str | None = None,
 ):
     """The bench's episode of ``seed`` (random scene, 3-5 blocks), tuned by ``config``, on the
-    default grasp model or ``grasp_model``."""
+    default grasp model or ``grasp_model`` and the default hand or ``hand``."""
     model = {} if grasp_model is None else {"grasp_model": grasp_model}
+    if hand is not None:
+        model["hand"] = hand
     options = EpisodeOptions(
         **model,
         scene="random",
@@ -57,6 +63,23 @@ def test_grasp_object_may_hand_back_to_fine_reach_for_a_regrasp() -> None:
     assert allowed(State.GRASP_OBJECT, State.FINE_REACH)
     assert allowed(State.GRASP_OBJECT, State.DELIVER)
     assert not allowed(State.GRASP_OBJECT, State.WRENCH_CLOSURE)
+    assert allowed(State.FINE_REACH, State.FINE_REACH)  # a finger held off: regrasp
+
+
+@pytest.mark.e2e
+def test_a_finger_held_off_in_fine_reach_regrasps_and_delivers(tmp_path: Path) -> None:
+    """Random scene 157 on the tendon hand: Fine Reach leaves the ring finger 36 mm from its
+    surface point; the hand regrasps with the wrist turned (it used to end the episode there,
+    "fingers cannot reach"), and the block is delivered."""
+    result = _random_episode(157, tmp_path, hand="tendon")
+    held_off = [
+        v
+        for v in result.visits
+        if v.state == State.FINE_REACH.value and v.next == State.FINE_REACH.value
+    ]
+    assert held_off, [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
+    assert "from its surface point" in held_off[0].reason and "regrasp" in held_off[0].reason
+    _delivered_physically(result)
 
 
 @pytest.mark.e2e
@@ -122,6 +145,22 @@ def test_clutter5_is_cleared_block_by_block(tmp_path: Path) -> None:
         j = cycle["judgement"]
         assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0, cycle["block"]
         assert max(j["other_blocks_moved_m"].values()) < 0.01, cycle["block"]
+
+
+@pytest.mark.e2e
+def test_a_place_point_between_tall_neighbours_is_set_down_at_the_nearer_clearance(
+    tmp_path: Path,
+) -> None:
+    """Random scene 159 on the tendon hand: at every turn about the place point the hand holding
+    the pentagon passes within the planning clearance (1 cm) of a neighbour as tall as the
+    block, at the carry height or on the way down (Deliver used to fail there, "no
+    collision-free posture above the place point"); lowered keeping SET_DOWN_CLEARANCE (3 mm)
+    instead, the block is set down where it was asked, and no neighbour is knocked away."""
+    result = _random_episode(159, tmp_path, hand="tendon")
+    _delivered_physically(result)
+    (cycle,) = result.cycles
+    assert cycle["set_down"].startswith("lowered keeping 3 mm (not 10 mm) from everything")
+    assert cycle["place_used"] == cycle["place_asked"] and not cycle["delivered_elsewhere"]
 
 
 @pytest.mark.e2e
