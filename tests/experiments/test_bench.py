@@ -424,10 +424,12 @@ def test_resume_in_one_process_gives_the_two_workers_results(two_workers, tmp_pa
 @pytest.mark.e2e
 def test_ray_local_gives_the_same_results(two_workers: Path, tmp_path: Path) -> None:
     out = tmp_path / "ray"
-    argv = [*QUICK, "--seeds", "0:2", "--ray", "local", "--workers", "2", "--out", str(out)]
+    # one seed: what is checked is that Ray's path (its start, the task, the results file, the
+    # report) gives the same line as the worker processes; a second seed only doubled the wait
+    argv = [*QUICK, "--seeds", "1:2", "--ray", "local", "--workers", "2", "--out", str(out)]
     assert bench.main(argv) == 0
     ours, theirs = lines_of(out), lines_of(two_workers)
-    assert sorted(ours) == [0, 1]
-    for seed in (0, 1):
+    assert sorted(ours) == [1]
+    for seed in (1,):
         assert without_wall_times(ours[seed]) == without_wall_times(theirs[seed])
     check_report(out)
