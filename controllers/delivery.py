@@ -97,6 +97,7 @@ def plan_delivery(
     lift: float = CARRY_HEIGHT,
     hover: float = SET_DOWN_HOVER,
     clearance: float = DEFAULT_CLEARANCE,
+    nearer: bool = True,
 ) -> DeliveryPlan:
     """Plan to carry ``block`` (held by the hand now, on the table or already lifted) to
     ``place_xy`` on the table (section 5.2, "Deliver": "the path is computed by the same harmonic
@@ -107,7 +108,10 @@ def plan_delivery(
     bottom at least ``lift`` above the table, and the path ends with it ``hover`` above the table
     at the place point (the rest of the set-down is sensed). Postures are checked with the block
     moving rigidly with the palm; where it is within ``2 * clearance`` of the table (lift-off and
-    set-down) the block-table pair is exempt."""
+    set-down) the block-table pair is exempt.
+
+    ``nearer``: when no turn keeps ``clearance``, try them again lowered at
+    :data:`SET_DOWN_CLEARANCE` (:func:`_set_down_path`); off, such a place point fails."""
     place = np.asarray(place_xy, dtype=float)
     if place.shape != (2,) or not np.all(np.isfinite(place)):
         raise ReachError(f"place point must be a finite (x, y), got {place_xy!r}")
@@ -169,7 +173,7 @@ def plan_delivery(
     # height and on the way down; then, if none is, every turn again lowered at
     # SET_DOWN_CLEARANCE, from above what the hand would pass within the planning clearance of
     # at the carry height (a neighbour as tall as the block)
-    for rise in (False, True):
+    for rise in (False, True) if nearer else (False,):
         for R in (_rotate_z(t) @ R0 for t in turns):
             # the palm moves so that the block's centre lands above the place point
             p_high = b0 + shift + R @ R0.T @ (p0 - b0)

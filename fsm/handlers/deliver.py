@@ -107,7 +107,10 @@ def deliver(ep: Episode) -> Step:
         State.DELIVER.value,
         f"lifted: block rose {lifted.block_rise * 100:.1f} cm",
     )
-    plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+    # the hand may set the block down nearer its neighbours at a point the user or the scene
+    # asked for; a slot the task cycle chose itself gives way to the next free one instead
+    asked = ep.cycle == 0
+    plan = plan_delivery(world, name, ep.place, block_height=ep.model.height, nearer=asked)
     tried = [np.asarray(ep.place, dtype=float)]
     # a place the task cycle chose itself (a later cycle's slot) may be free for the block but
     # not for the hand around it: take the next free slot; a place point asked for is moved only
@@ -132,7 +135,7 @@ def deliver(ep: Episode) -> Step:
             f"{slot.round(3).tolist()}" + _elsewhere_note(record),
         )
         tried.append(slot)
-        plan = plan_delivery(world, name, ep.place, block_height=ep.model.height)
+        plan = plan_delivery(world, name, ep.place, block_height=ep.model.height, nearer=False)
     if not plan.found:
         raise TaskFailedError(
             Failure.PLACE_UNREACHABLE, _unreachable_detail(ep, tried, plan.reason)
