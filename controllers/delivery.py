@@ -59,6 +59,9 @@ class DeliveryPlan:
     transit: ArmPath | None  #: the harmonic part
     block_goal: NDArray[np.float64] | None  #: (3,) block centre at the end
     reason: str
+    #: "" when the set-down keeps the planning clearance, else how it is lowered instead
+    #: (:func:`_set_down_path` with ``rise``)
+    set_down: str = ""
 
 
 def _rotate_z(angle: float) -> NDArray[np.float64]:
@@ -195,15 +198,15 @@ def plan_delivery(
     down = set_down[-1]
     path = dedupe_path(np.vstack([*lead[:-1], transit.path, set_down[1:]]))
     block_goal, _ = checker.carried_pose(down)
-    reason = "reached goal"
+    how = ""
     if rise:
         risen = checker.palm_pose(set_down[0])[0][2] - checker.palm_pose(set_down[-2])[0][2]
-        reason += (
-            f"; lowered keeping {SET_DOWN_CLEARANCE * 1000:.0f} mm (not "
-            f"{clearance * 1000:.0f} mm) from everything"
+        how = (
+            f"lowered keeping {SET_DOWN_CLEARANCE * 1000:.0f} mm (not {clearance * 1000:.0f} "
+            "mm) from everything"
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
-    return DeliveryPlan(True, path, transit, block_goal, reason)
+    return DeliveryPlan(True, path, transit, block_goal, "reached goal", how)
 
 
 def _set_down_path(

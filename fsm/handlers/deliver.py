@@ -166,7 +166,7 @@ def deliver(ep: Episode) -> Step:
             f"after the carry the hand holds {load:.2f} N of an expected "
             f"{ep.expected_load:.2f} N (wrist sensor, at rest)",
         )
-    record.set_down = plan.reason.split("; ", 1)[1] if "; " in plan.reason else ""
+    record.set_down = plan.set_down
     lowering = f" ({record.set_down})" if record.set_down else ""
     log(State.DELIVER.value, State.DELIVER.value, f"carried to the place point; lowering{lowering}")
     down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
