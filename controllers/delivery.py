@@ -176,23 +176,20 @@ def plan_delivery(
     # height and on the way down; then, if none is, every turn again lowered at
     # SET_DOWN_CLEARANCE, from above what the hand would pass within the planning clearance of
     # at the carry height (a neighbour as tall as the block)
-    for rise in (False, True) if nearer else (False,):
-        for R in (_rotate_z(t) @ R0 for t in turns):
-            # the palm moves so that the block's centre lands above the place point
-            p_high = b0 + shift + R @ R0.T @ (p0 - b0)
-            seed = np.array([start[0] + turn, *start[1:]])
-            set_down = _set_down_path(checker, descent, p_high, drop, R, seed, rise=rise)
-            if set_down is None:
-                continue
-            # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn
-            # beside a tall neighbour at the start) gives way to the next one
-            transit = plan_arm_path(checker, start, set_down[0], resolution=resolution)
-            if transit.found:
-                break
-            first_failure = first_failure or fail(f"transit: {transit.reason}", transit)
-        else:
+    seed = np.array([start[0] + turn, *start[1:]])
+    passes = (False, True) if nearer else (False,)
+    for rise, R in ((r, _rotate_z(t) @ R0) for r in passes for t in turns):
+        # the palm moves so that the block's centre lands above the place point
+        p_high = b0 + shift + R @ R0.T @ (p0 - b0)
+        set_down = _set_down_path(checker, descent, p_high, drop, R, seed, rise=rise)
+        if set_down is None:
             continue
-        break
+        # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
+        # a tall neighbour at the start) gives way to the next one
+        transit = plan_arm_path(checker, start, set_down[0], resolution=resolution)
+        if transit.found:
+            break
+        first_failure = first_failure or fail(f"transit: {transit.reason}", transit)
     else:
         return first_failure or fail("no collision-free posture above the place point")
     down = set_down[-1]
