@@ -23,13 +23,8 @@ from controllers.delivery import plan_delivery
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.harmonic import ascend, solve_harmonic
-from controllers.posture import (
-    IK_DAMPING,
-    IK_DT,
-    QP_SOLVER,
-    ManipulabilityTask,
-    solve_posture,
-)
+from controllers.manipulability import ManipulabilityTask
+from controllers.posture import IK_DAMPING, IK_DT, QP_SOLVER, solve_posture
 from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
 from hand_sim import clitools as cli
 from hand_sim import robot

@@ -3,17 +3,7 @@ paper): keep the fingertips where they are while reconfiguring the arm and hand 
 hand's manipulability, with mink's differential IK (one position-only FrameTask per fingertip,
 joint limits as ConfigurationLimit).
 
-Manipulability measure. Each finger's fingertip position Jacobian ``J_f`` (3 x 4, with respect
-to that finger's own joints) has Yoshikawa manipulability ``w_f = sqrt(det(J_f J_f^T))``; the
-hand's measure is ``M = sum_f log(w_f)`` (log of the product; ``-inf`` at a singular finger).
-``w_f`` does not depend on the arm, but with the fingertips held the arm must move for the
-fingers to change posture: the arm is "reconfigured to maximise the hand manipulability while
-maintaining the current fingertip positions".
-
-:class:`ManipulabilityTask` is a gradient-type mink task: its error is a constant desired
-decrease of ``-2 M`` per step and its Jacobian the gradient of ``-2 M`` (finite differences over
-the finger joints), so the QP trades it against the fingertip tasks; it needs ``solve_ik(...,
-damping=...)``: without, the step explodes (docs/reach.md, "Posture control").
+The manipulability measure ``M`` and its mink task are in :mod:`controllers.manipulability`.
 """
 
 from __future__ import annotations
@@ -27,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
 from controllers.ik_progress import ReachProgress
+from controllers.manipulability import ManipulabilityTask, log_manipulability
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -49,11 +40,6 @@ PAD_CENTRE_COST = 0.3
 #: iteration (m).
 PAD_SETTLED = 1e-5
 TIP_LM_DAMPING = 1e-3
-#: Manipulability task cost and desired decrease of -2M per IK step.
-MANIPULABILITY_COST = 0.05
-MANIPULABILITY_STEP = 0.5
-#: Finite-difference step (rad) of the manipulability gradient.
-FD_STEP = 1e-6
 #: Iterations: reaching the fingertip targets, then optimising the posture.
 REACH_ITERATIONS = 300
 POSTURE_ITERATIONS = 150
@@ -74,76 +60,9 @@ AVOID_GAIN = 0.85
 PALM_DISTANCE = 0.003
 #: How far (m) the iterates may come inside an avoided distance before a step is refused.
 CLEARANCE_SLACK = 0.001
-
-
-def finger_manipulability(
-    model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndices
-) -> NDArray[np.float64]:
-    """``w_f = sqrt(det(J_f J_f^T))`` (m^3 rad^-3) of each finger; ``data`` must hold current
-    kinematics and ``mj_comPos``."""
-    jacp = np.zeros((3, model.nv))
-    out = np.empty(len(idx.tip_sites))
-    for f, site in enumerate(idx.tip_sites):
-        mujoco.mj_jacSite(model, data, jacp, None, int(site))
-        J = jacp[:, idx.finger_dofs[f]]
-        out[f] = np.sqrt(max(np.linalg.det(J @ J.T), 0.0))
-    return out
-
-
-def log_manipulability(model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndices) -> float:
-    """The hand's measure ``M = sum_f log(w_f)``."""
-    with np.errstate(divide="ignore"):
-        return float(np.log(finger_manipulability(model, data, idx)).sum())
-
-
-class ManipulabilityTask(mink.Task):
-    """A mink task whose error is a desired decrease ``step`` of ``-2 M`` and whose Jacobian is
-    the gradient of ``-2 M = -sum_f log det(J_f J_f^T)`` over the finger joints."""
-
-    k: int = 1
-
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        *,
-        cost: float = MANIPULABILITY_COST,
-        step: float = MANIPULABILITY_STEP,
-        gain: float = 1.0,
-    ) -> None:
-        if cost < 0 or step <= 0:
-            raise PostureError(f"need cost >= 0 and step > 0, got cost {cost} step {step}")
-        super().__init__(cost=np.array([cost]), gain=gain, lm_damping=0.0)
-        self.model = model
-        self.idx = RobotIndices.of(model)
-        self.step = float(step)
-        self._data = mujoco.MjData(model)
-
-    def objective(self, qpos: NDArray[np.float64]) -> float:
-        """``-2 M`` at ``qpos``."""
-        d = self._data
-        d.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, d)
-        mujoco.mj_comPos(self.model, d)
-        return -2.0 * log_manipulability(self.model, d, self.idx)
-
-    def compute_error(self, configuration: mink.Configuration) -> NDArray[np.float64]:
-        """The desired decrease of ``-2 M`` this step."""
-        return np.array([self.step])
-
-    def compute_jacobian(self, configuration: mink.Configuration) -> NDArray[np.float64]:
-        """Gradient (1, nv) of ``-2 M`` by central differences over the finger joints."""
-        q = configuration.q.copy()
-        grad = np.zeros((1, self.model.nv))
-        for qa, da in zip(self.idx.hand_qpos, self.idx.hand_dof, strict=True):
-            q[qa] += FD_STEP
-            hi = self.objective(q)
-            q[qa] -= 2 * FD_STEP
-            lo = self.objective(q)
-            q[qa] += FD_STEP
-            grad[0, da] = (hi - lo) / (2 * FD_STEP)
-        if not np.all(np.isfinite(grad)):
-            grad[:] = 0.0  # at a singular finger; the fingertip tasks still act
-        return grad
+#: Distance (m) a pad keeps from the block it may touch when it must not press into it
+#: (``pads_press=False``): 0, touching allowed.
+PAD_PRESS_LIMIT = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,14 +87,22 @@ class PostureResult:
 
 
 def avoidance_groups(
-    model: mujoco.MjModel, touchable: str | None = None, *, fingers_may_touch: bool = False
+    model: mujoco.MjModel,
+    touchable: str | None = None,
+    *,
+    fingers_may_touch: bool = False,
+    pads_press: bool = True,
 ) -> list[tuple[list[tuple[list[int], list[int]]], float]]:
     """Geom groups for collision avoidance, each with its distance to keep (m): every colliding
     robot geom against every colliding geom that is not the robot's (table top, blocks; not the
     floor the robot stands on), the palm from further (:data:`PALM_DISTANCE`). The fingertip pads
     may touch the geom named ``touchable`` (the block to grasp), and with ``fingers_may_touch``
     every finger link may (a grasp wraps the block; whether a link would press into it is for
-    :mod:`controllers.hand_reach` to judge)."""
+    :mod:`controllers.hand_reach` to judge). Without ``pads_press`` the pads may touch that
+    geom but not press into it (:data:`PAD_PRESS_LIMIT`): holding the fingertip sites alone
+    leaves each finger free to turn about its tip, and the turn swings the pad into the face
+    (clutter3: 5-9 mm in). A posture move that starts with a pad pressed in further than
+    :data:`CLEARANCE_SLACK` then makes no step at all."""
     active = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
     pads = {model.geom(robot.hand_name(f"{f}_pad")).id for f in robot.FINGERS}
     palm = model.body(robot.hand_name(robot.PALM_BODY)).id
@@ -197,7 +124,10 @@ def avoidance_groups(
         }
         allowed = hand if fingers_may_touch else pads
         near.append(([g for g in others if g not in allowed], [target]))
-    return [(near, AVOID_DISTANCE), ([(palm_geoms, env_geoms)], PALM_DISTANCE)]
+    groups = [(near, AVOID_DISTANCE), ([(palm_geoms, env_geoms)], PALM_DISTANCE)]
+    if target >= 0 and not pads_press:
+        groups.append(([(sorted(pads), [target])], PAD_PRESS_LIMIT))
+    return groups
 
 
 def _point_tasks(
@@ -239,6 +169,7 @@ def solve_posture(
     avoid_collisions: bool = False,
     touchable: str | None = None,
     fingers_may_touch: bool = False,
+    pads_press: bool = True,
     pad_centres: ArrayLike | None = None,
     slide: tuple[float, float] | None = None,
     give_up: bool = False,
@@ -252,8 +183,9 @@ def solve_posture(
     ``model`` replaces the world's model (same state layout; e.g. the planning model holding the
     perceived target, :mod:`controllers.planning_model`). ``avoid_collisions`` keeps every robot
     geom :data:`AVOID_DISTANCE` from the table and the blocks (mink's collision avoidance limit),
-    except that the fingertip pads may touch (and, kinematically, press into) the geom named
-    ``touchable``. ``pad_centres`` (4, 3), if given, are targets of the centres of the
+    except that the fingertip pads may touch (and, kinematically, press into, unless
+    ``pads_press`` is False) the geom named ``touchable``. ``pad_centres`` (4, 3), if given,
+    are targets of the centres of the
     fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`) at a lower cost: with a fingertip
     target on a surface point and its pad centre one pad radius out along the surface normal,
     the pad, not the side or the end of the finger, faces the surface (position-only IK leaves
@@ -309,7 +241,7 @@ def solve_posture(
     avoidance: list[mink.CollisionAvoidanceLimit] = []
     if avoid_collisions:
         for pairs, distance in avoidance_groups(
-            model, touchable, fingers_may_touch=fingers_may_touch
+            model, touchable, fingers_may_touch=fingers_may_touch, pads_press=pads_press
         ):
             avoidance.append(
                 mink.CollisionAvoidanceLimit(
@@ -432,16 +364,6 @@ def solve_posture(
         path=np.array(path),
         targets=goal.copy(),
     )
-
-
-def world_log_manipulability(world: World) -> float:
-    """``M`` of the hand in the world's current state."""
-    model = world.model
-    data = mujoco.MjData(model)
-    data.qpos[:] = world.data.qpos
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
-    return log_manipulability(model, data, RobotIndices.of(model))
 
 
 #: Time (s) over which servo targets move to a new posture (then they settle for

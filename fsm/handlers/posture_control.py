@@ -37,6 +37,7 @@ def posture_control(ep: Episode) -> Step:
             model=ep.planning,
             avoid_collisions=True,
             touchable=PERCEIVED_GEOM,
+            pads_press=False,
         )
         before = world.fingertip_positions()
         if sol.reachable:

@@ -7,12 +7,8 @@ import numpy as np
 import pytest
 
 from controllers.errors import PostureError
-from controllers.posture import (
-    apply_posture,
-    finger_manipulability,
-    solve_posture,
-    world_log_manipulability,
-)
+from controllers.manipulability import finger_manipulability, world_log_manipulability
+from controllers.posture import apply_posture, solve_posture
 from hand_sim.indices import RobotIndices
 
 

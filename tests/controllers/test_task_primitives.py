@@ -18,7 +18,7 @@ from controllers.hand_reach import MIN_PAD_SPACING, check_reach
 from controllers.harmonic import GridSpec
 from controllers.motion import BlockSite, approach_touches, move_backed_out
 from controllers.planning_model import PERCEIVED_GEOM, planning_model
-from controllers.posture import apply_posture, solve_posture
+from controllers.posture import CLEARANCE_SLACK, apply_posture, solve_posture
 from controllers.reach import PRESHAPE, ReachTarget
 from controllers.transport import held_load, timed_path
 from hand_sim import robot
@@ -99,6 +99,52 @@ def test_fine_reach_guards_touch_and_uses_the_perceived_block(hovering) -> None:
     assert result.tip_error.max() < 0.015, result.tip_error
     assert result.max_penetration < 0.002
     assert np.linalg.norm(world.block_pose(name)[0][:2] - before[:2]) < 5e-3
+
+
+def _pad_distances(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Each pad's signed distance (m) to the perceived block in ``model`` at ``qpos``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    block, fromto = model.geom(PERCEIVED_GEOM).id, np.zeros(6)
+    pads = [model.geom(robot.hand_name(f"{f}_pad")).id for f in robot.FINGERS]
+    return np.array([mujoco.mj_geomDistance(model, data, g, block, 0.05, fromto) for g in pads])
+
+
+def test_the_hold_posture_keeps_the_pads_from_pressing_into_the_block() -> None:
+    """Posture Control after Fine Reach holds the fingertip sites; turning a finger about its
+    tip swings the pad into the face (clutter3: 5-9 mm into it, which pushed tall triangles
+    over on the tendon hand). With ``pads_press=False`` the pads may touch, not press in, the
+    manipulability still rises, and the block stays where it stands."""
+    world, target = hover_over_target()
+    name = world.scene.target
+    model = planning_model(
+        world, name, target.polygon, target.yaw, target.position_xy, target.top_z
+    )
+    fine_reach(world, name, seen=target, model=model, touchable=PERCEIVED_GEOM)
+    before = world.block_pose(name)[0]
+
+    def planned(pads_press: bool) -> tuple[object, np.ndarray]:
+        sol = solve_posture(
+            world,
+            model=model,
+            avoid_collisions=True,
+            touchable=PERCEIVED_GEOM,
+            pads_press=pads_press,
+        )
+        q = world.data.qpos.copy()
+        q[robot.arm_qpos_addresses(model)] = sol.arm_q
+        q[robot.hand_qpos_addresses(model)] = sol.hand_q
+        return sol, _pad_distances(model, q)
+
+    _, pressed = planned(True)
+    assert pressed.min() < -0.003  # the unguarded hold does press a pad in
+    sol, kept = planned(False)
+    assert sol.reachable
+    assert sol.log_manipulability_end > sol.log_manipulability_start
+    assert kept.min() > -CLEARANCE_SLACK, kept
+    apply_posture(world, sol)
+    assert np.linalg.norm(world.block_pose(name)[0][:2] - before[:2]) < 1e-3
 
 
 def test_reachability_refuses_pads_too_close_and_unreachable_contacts(hovering) -> None:
