@@ -100,10 +100,12 @@ def test_palm_pose_search_finds_a_posture_the_roll_seeds_miss(tmp_path: Path) ->
 
 @pytest.mark.e2e
 def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Path) -> None:
-    """Random scene 2 (a trapezoid), planar grasp model: the thumb loses the block in the squeeze;
-    the hand opens and regrasps from Fine Reach with the wrist turned, and the block is delivered.
-    (The 3-D model's grasp of this scene holds at the first squeeze: no regrasp to see.)"""
-    result = _random_episode(2, tmp_path, grasp_model=PLANAR)
+    """Random scene 104 (an irregular pentagon among five blocks): after three regrasps from
+    Posture Control the thumb loses the block in the squeeze; the hand opens and regrasps from
+    Fine Reach with the wrist turned, and the block is delivered. (Random scene 2's planar grasp
+    showed this until Posture Control's hold stopped pressing the pads into the block: its
+    squeeze now holds at once, as on seeds 3-14.)"""
+    result = _random_episode(104, tmp_path)
     regrasps = [
         v
         for v in result.visits
@@ -117,11 +119,10 @@ def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Pat
 
 @pytest.mark.e2e
 def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> None:
-    """With no regrasp allowed, the same squeeze failure ends the episode with the reason of
-    Grasp Object (fingers cannot reach), not the regrasp's."""
-    result = _random_episode(
-        2, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0), grasp_model=PLANAR
-    )
+    """With three regrasps allowed, the same squeeze failure (random scene 104's fourth call for
+    a regrasp) ends the episode with the reason of Grasp Object (fingers cannot reach), not the
+    regrasp's."""
+    result = _random_episode(104, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=3))
     assert not result.success
     assert result.failure == "fingers cannot reach"
     assert "squeeze did not reach the grip force" in result.failure_detail
