@@ -174,28 +174,27 @@ def solve_posture(
     slide: tuple[float, float] | None = None,
     give_up: bool = False,
 ) -> PostureResult:
-    """Kinematic posture control from the world's current state, or from ``qpos`` (the world is
-    not changed). First the fingertips are brought to ``targets`` (4, 3) (default: where they
-    are now); if a target stays farther than ``tolerance`` the result is ``reachable=False``.
-    Then, if ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold
-    the tips; a step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
+    """Kinematic posture control from the world's current state, or from ``qpos`` (the world is not
+    changed). First the fingertips are brought to ``targets`` (4, 3) (default: where they are now);
+    if a target stays farther than ``tolerance`` the result is ``reachable=False``. Then, if
+    ``optimize``, the manipulability task raises ``M`` while the fingertip tasks hold the tips; a
+    step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
     ``"arm+hand"`` (posture control) or ``"hand"`` (fingers only); other joints are frozen.
     ``model`` replaces the world's model (same state layout; e.g. the planning model holding the
     perceived target, :mod:`controllers.planning_model`). ``avoid_collisions`` keeps every robot
     geom :data:`AVOID_DISTANCE` from the table and the blocks (mink's collision avoidance limit),
-    except that the fingertip pads may touch (and, kinematically, press into, unless
-    ``pads_press`` is False) the geom named ``touchable``. ``pad_centres`` (4, 3), if given,
-    are targets of the centres of the
-    fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`) at a lower cost: with a fingertip
-    target on a surface point and its pad centre one pad radius out along the surface normal,
-    the pad, not the side or the end of the finger, faces the surface (position-only IK leaves
-    each finger one redundant degree of freedom, its pad's orientation). ``slide`` = (lowest,
-    highest) world z (m) lets each fingertip target slide vertically within that range while
-    the fingertips are brought to their targets: a contact on a prism's vertical face is planar
-    (section 5), a vertical line, so only the target's horizontal position is held and its height
-    follows the fingertip's. ``give_up``: stop as soon as the targets cannot be reached
-    (:class:`controllers.ik_progress.ReachProgress`), for a caller that discards unreachable
-    results (their joints then differ from those of a full run).
+    except that the fingertip pads may touch (and, kinematically, press into, unless ``pads_press``
+    is False) the geom named ``touchable``. ``pad_centres`` (4, 3), if given, are targets of the
+    centres of the fingertips' rounded ends (:data:`robot.PAD_CENTRE_SITES`) at a lower cost: with a
+    fingertip target on a surface point and its pad centre one pad radius out along the surface
+    normal, the pad, not the side or the end of the finger, faces the surface (position-only IK
+    leaves each finger one redundant degree of freedom, its pad's orientation). ``slide`` = (lowest,
+    highest) world z (m) lets each fingertip target slide vertically within that range while the
+    fingertips are brought to their targets: a contact on a prism's vertical face is planar (section
+    5), a vertical line, so only the target's horizontal position is held and its height follows the
+    fingertip's. ``give_up``: stop as soon as the targets cannot be reached
+    (:class:`controllers.ik_progress.ReachProgress`), for a caller that discards unreachable results
+    (their joints then differ from those of a full run).
     """
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
