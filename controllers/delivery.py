@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq
 
 from controllers.arm_path import (
     DEFAULT_RESOLUTION,
@@ -22,7 +23,7 @@ from controllers.arm_path import (
     first_collision,
     plan_arm_path,
 )
-from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker
+from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, rotation_error
 from controllers.errors import ReachError
 from hand_sim import robot
 from hand_sim.world import World
@@ -45,6 +46,12 @@ MAX_EXTRA_RISE = 0.30
 #: first. The task asks for a place point, not a yaw (the judge measures the distance and the
 #: tilt), and a hand turned about the block may clear a neighbour the first two do not.
 SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.0]))
+#: Sine of the held hand's tool axis's tilt from the vertical below which any turn about the
+#: vertical is within the 5-joint arm's reach (:func:`reachable_turn`); above it, each of
+#: SET_DOWN_TURNS moves to the nearest turn the arm can hold.
+ALIGNED_TILT = 1e-3
+#: Turns (over a full circle) sampled to bracket the reachable turns before Brent's method.
+TURN_SAMPLES = 720
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,6 +75,49 @@ def _rotate_z(angle: float) -> NDArray[np.float64]:
     """Rotation by ``angle`` (rad) about the world z axis."""
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def reachable_turn(
+    turn: float,
+    pivot: NDArray[np.float64],
+    shift: NDArray[np.float64],
+    flange: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    base: NDArray[np.float64],
+) -> float:
+    """The turn (rad) nearest ``turn`` at which the 5-joint arm can hold the hand turned about
+    the vertical through ``pivot`` (the held block's centre) and moved by ``shift``.
+
+    The arm's shoulder, elbow and wrist pitch turn about parallel horizontal axes, so its tool
+    axis (the wrist roll's, through the flange) always lies in a vertical plane through the
+    waist axis at ``base``. Turning a hand that points straight down keeps it there at any turn;
+    a tilted hand (the held grasp's palm ``ALIGNED_TILT`` or more off the vertical, or a lateral
+    grasp's horizontal palm) turned about the vertical leaves that plane except where the
+    horizontal projection of its tool axis, through the moved ``flange`` along the turned
+    ``axis``, passes through ``base``: the zeros of a cross product over the turn, bracketed on
+    :data:`TURN_SAMPLES` turns and found by Brent's method. Without any, ``turn`` itself."""
+    a = np.asarray(axis, dtype=float)[:2]
+    if np.linalg.norm(a) < ALIGNED_TILT:
+        return float(turn)
+    lever = np.asarray(flange, dtype=float)[:2] - pivot[:2]
+    origin = pivot[:2] + shift[:2] - base[:2]
+
+    def off_plane(t: float) -> float:
+        c, s = np.cos(t), np.sin(t)
+        rot = np.array([[c, -s], [s, c]])
+        f, d = origin + rot @ lever, rot @ a
+        return float(f[0] * d[1] - f[1] * d[0])
+
+    grid = np.linspace(-np.pi, np.pi, TURN_SAMPLES + 1)
+    values = np.array([off_plane(t) for t in grid])
+    roots = [
+        brentq(off_plane, grid[i], grid[i + 1]) if values[i + 1] != 0.0 else grid[i + 1]
+        for i in np.flatnonzero(values[:-1] * values[1:] <= 0.0)
+    ]
+    if not roots:
+        return float(turn)
+    gap = np.abs(np.angle(np.exp(1j * (np.array(roots) - turn))))
+    return float(roots[int(np.argmin(gap))])
 
 
 def rise_until_clear(
@@ -170,15 +220,30 @@ def plan_delivery(
     )
     shift = np.array([*(place - b0[:2]), carry_z - b0[2]])
     drop = np.array([0.0, 0.0, down_z - carry_z])
-    turns = [0.0, turn, *(turn + t for t in SET_DOWN_TURNS)]
+    # the turns beyond the first two, each moved to the nearest the arm can hold (a tilted
+    # hand), once each
+    flange = world.model.body(robot.arm_name("flange")).id
+    checker.palm_pose(q0)
+    flange_at, tool_axis = checker.data.xpos[flange].copy(), checker.data.xmat[flange, 2::3].copy()
+    turns = [0.0, turn]
+    for t in SET_DOWN_TURNS:
+        held = reachable_turn(turn + t, b0, shift, flange_at, tool_axis, base)
+        if all(abs(np.angle(np.exp(1j * (held - u)))) > 1e-3 for u in turns):
+            turns.append(held)
     first_failure: DeliveryPlan | None = None
     # first every turn with the hand clear of everything by the planning clearance at the carry
     # height and on the way down; then, if none is, every turn again lowered at
     # SET_DOWN_CLEARANCE, from above what the hand would pass within the planning clearance of
     # at the carry height (a neighbour as tall as the block)
     seed = np.array([start[0] + turn, *start[1:]])
+    seeds = [
+        seed,
+        seed,
+        *(_turned_seed(checker, seed, t - turn, _rotate_z(t) @ R0) for t in turns[2:]),
+    ]
     passes = (False, True) if nearer else (False,)
-    for rise, R in ((r, _rotate_z(t) @ R0) for r in passes for t in turns):
+    for rise, (t, seed) in ((r, ts) for r in passes for ts in zip(turns, seeds, strict=True)):
+        R = _rotate_z(t) @ R0
         # the palm moves so that the block's centre lands above the place point
         p_high = b0 + shift + R @ R0.T @ (p0 - b0)
         set_down = _set_down_path(checker, descent, p_high, drop, R, seed, rise=rise)
@@ -204,6 +269,23 @@ def plan_delivery(
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
     return DeliveryPlan(True, path, transit, block_goal, "reached goal", how)
+
+
+def _turned_seed(
+    checker: CollisionChecker, seed: NDArray[np.float64], extra: float, R: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The IK seed for a set-down with the palm at orientation ``R``, turned ``extra`` (rad)
+    about the vertical beyond the waist's turn: ``seed`` with its wrist roll turned by ``extra``
+    one way or the other, whichever puts the palm nearer ``R`` (the damped least squares from
+    ``seed`` itself stalls far from a large turn)."""
+    best, error = seed, np.inf
+    for sign in (1.0, -1.0):
+        q = seed.copy()
+        q[-1] = np.clip(q[-1] + sign * extra, *checker.arm_limits[-1])
+        e = float(np.linalg.norm(rotation_error(R, checker.palm_pose(q)[1])))
+        if e < error:
+            best, error = q, e
+    return best
 
 
 def _set_down_path(

@@ -9,10 +9,11 @@ import itertools
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
-from controllers.delivery import SET_DOWN_HOVER, plan_delivery
+from controllers.delivery import SET_DOWN_HOVER, plan_delivery, reachable_turn
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.grasp.objects import paper_object
@@ -257,11 +258,43 @@ def _palm_yaw(world: World, q: np.ndarray) -> float:
 POST_WIDTH = 0.015
 
 
+def test_a_tilted_hand_is_turned_only_where_the_five_joint_arm_can_hold_it() -> None:
+    """The arm's tool axis stays in a vertical plane through its waist axis: a hand tilted 14 deg
+    off the vertical, moved 3.6 cm and turned 135 deg about a vertical line 5 cm beyond its palm,
+    is out of the arm's reach from any IK seed (wrist roll turned either way); the turn
+    ``reachable_turn`` gives instead (the hand tilted towards the base) is reached. A hand
+    pointing straight down keeps its turn."""
+    world = World.build(load_scene("clutter3"))
+    checker = CollisionChecker(world)
+    q = np.array([0.3, 0.5, 1.9, 0.5, 0.4])
+    p0, R0 = checker.palm_pose(q)
+    assert np.degrees(np.arccos(-R0[2, 2])) > 10.0
+    flange = world.model.body(robot.arm_name("flange")).id
+    flange_at, axis = checker.data.xpos[flange].copy(), checker.data.xmat[flange, 2::3].copy()
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id]
+    pivot, shift = p0 + 0.05 * R0[:, 2], np.array([0.03, -0.02, 0.0])
+
+    def reached(turn: float) -> bool:
+        R = Rotation.from_euler("z", turn).as_matrix() @ R0
+        p = pivot + shift + R @ R0.T @ (p0 - pivot)
+        seeds = [np.array([*q[:4], q[4] + sign * turn]) for sign in (1.0, -1.0)]
+        return any(checker.solve_ik(p, R, seed).found for seed in seeds)
+
+    nominal = np.deg2rad(135.0)
+    assert not reached(nominal)
+    held = reachable_turn(nominal, pivot, shift, flange_at, axis, base)
+    assert abs(held) > np.deg2rad(150.0)  # the nearest turn the arm holds: tilted the other way
+    assert reached(held)
+    down = np.array([0.0, 0.0, -1.0])
+    assert reachable_turn(nominal, pivot, shift, flange_at, down, base) == nominal
+
+
 def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_place_point():
     """A post stands 3 cm beyond where a fingertip would be at the set-down: the hand as it holds
     the block (and turned with the waist) cannot set it down; turned further about the place
-    point it can (controllers.delivery.SET_DOWN_TURNS; before them: "no collision-free posture
-    above the place point"), and the carried block touches nothing on the way (independent
+    point it can (controllers.delivery.SET_DOWN_TURNS, each moved to the nearest turn the arm
+    can hold the tilted hand at; before them: "no collision-free posture above the place
+    point"), and the carried block touches nothing on the way (independent
     check)."""
     scene = load_scene("clutter3")
     world = _holding_the_pentagon(scene)
