@@ -10,6 +10,7 @@ the block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-dow
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,8 +48,9 @@ MAX_EXTRA_RISE = 0.30
 #: tilt), and a hand turned about the block may clear a neighbour the first two do not.
 SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.0]))
 #: Sine of the held hand's tool axis's tilt from the vertical below which any turn about the
-#: vertical is within the 5-joint arm's reach (:func:`reachable_turn`); above it, each of
-#: SET_DOWN_TURNS moves to the nearest turn the arm can hold.
+#: vertical is within the 5-joint arm's reach (:func:`reachable_turn`). When no turn of
+#: SET_DOWN_TURNS gives a set-down, each is moved to the nearest turn the arm can hold a hand
+#: tilted more than this at, and those are tried.
 ALIGNED_TILT = 1e-3
 #: Turns (over a full circle) sampled to bracket the reachable turns before Brent's method.
 TURN_SAMPLES = 720
@@ -220,33 +222,27 @@ def plan_delivery(
     )
     shift = np.array([*(place - b0[:2]), carry_z - b0[2]])
     drop = np.array([0.0, 0.0, down_z - carry_z])
-    # the turns beyond the first two, each moved to the nearest the arm can hold (a tilted
-    # hand), once each
-    flange = world.model.body(robot.arm_name("flange")).id
-    checker.palm_pose(q0)
-    flange_at, tool_axis = checker.data.xpos[flange].copy(), checker.data.xmat[flange, 2::3].copy()
-    turns = [0.0, turn]
-    for t in SET_DOWN_TURNS:
-        held = reachable_turn(turn + t, b0, shift, flange_at, tool_axis, base)
-        if all(abs(np.angle(np.exp(1j * (held - u)))) > 1e-3 for u in turns):
-            turns.append(held)
     first_failure: DeliveryPlan | None = None
     # first every turn with the hand clear of everything by the planning clearance at the carry
     # height and on the way down; then, if none is, every turn again lowered at
     # SET_DOWN_CLEARANCE, from above what the hand would pass within the planning clearance of
-    # at the carry height (a neighbour as tall as the block)
+    # at the carry height (a neighbour as tall as the block); then both again at the turns a
+    # tilted hand can be held at (_held_turns)
     seed = np.array([start[0] + turn, *start[1:]])
-    seeds = [
-        seed,
-        seed,
-        *(_turned_seed(checker, seed, t - turn, _rotate_z(t) @ R0) for t in turns[2:]),
-    ]
+    turns = [0.0, turn, *(turn + t for t in SET_DOWN_TURNS)]
     passes = (False, True) if nearer else (False,)
-    for rise, (t, seed) in ((r, ts) for r in passes for ts in zip(turns, seeds, strict=True)):
+
+    def candidates() -> Iterator[tuple[bool, float, NDArray[np.float64]]]:
+        yield from ((rise, t, seed) for rise in passes for t in turns)
+        held = _held_turns(checker, q0, turns, b0, shift, base)
+        seeds = [_turned_seed(checker, seed, t - turn, _rotate_z(t) @ R0) for t in held]
+        yield from ((rise, t, s) for rise in passes for t, s in zip(held, seeds, strict=True))
+
+    for rise, t, ik_seed in candidates():
         R = _rotate_z(t) @ R0
         # the palm moves so that the block's centre lands above the place point
         p_high = b0 + shift + R @ R0.T @ (p0 - b0)
-        set_down = _set_down_path(checker, descent, p_high, drop, R, seed, rise=rise)
+        set_down = _set_down_path(checker, descent, p_high, drop, R, ik_seed, rise=rise)
         if set_down is None:
             continue
         # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
@@ -269,6 +265,30 @@ def plan_delivery(
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
     return DeliveryPlan(True, path, transit, block_goal, "reached goal", how)
+
+
+def _held_turns(
+    checker: CollisionChecker,
+    q0: NDArray[np.float64],
+    turns: list[float],
+    pivot: NDArray[np.float64],
+    shift: NDArray[np.float64],
+    base: NDArray[np.float64],
+) -> list[float]:
+    """Each of ``turns`` beyond the first two moved to the nearest turn the arm can hold the
+    hand at (:func:`reachable_turn`, the hand as it is at ``q0``), once each, without the first
+    two (within 1 mrad: the waist already holds the hand at those). One may equal a turn of
+    ``turns``: it is tried again from another IK seed (:func:`_turned_seed`)."""
+    flange = checker.model.body(robot.arm_name("flange")).id
+    checker.palm_pose(q0)
+    flange_at = checker.data.xpos[flange].copy()
+    axis = checker.data.xmat[flange, 2::3].copy()
+    held: list[float] = []
+    for t in turns[2:]:
+        h = reachable_turn(t, pivot, shift, flange_at, axis, base)
+        if all(abs(np.angle(np.exp(1j * (h - u)))) > 1e-3 for u in [*turns[:2], *held]):
+            held.append(h)
+    return held
 
 
 def _turned_seed(
