@@ -90,6 +90,9 @@ def test_degenerate_regions_of_a_random_view_are_modelled_or_refused(seed: int) 
             assert outcomes[f"{name} of block {r.index}"] == "refused"
 
 
+#: Blocks on each fuzzed table (two: the first cycle's place point and one the task cycle
+#: chooses).
+FUZZ_BLOCKS = 2
 #: Short budgets: one regrasp instead of four, so that a hard block fails sooner.
 FAST = dataclasses.replace(DEFAULT_CONFIG, max_regrasps=1)
 #: The reasons an episode may end with (an internal error is a bug: the fuzz fails on it).
@@ -104,7 +107,7 @@ def test_clearing_random_tables_ends_delivered_or_with_a_named_failure(
     options = EpisodeOptions(
         scene="random",
         seed=seed,
-        blocks=3,
+        blocks=FUZZ_BLOCKS,
         controller="kb",
         cycles=None,
         out=tmp_path,
@@ -121,4 +124,4 @@ def test_clearing_random_tables_ends_delivered_or_with_a_named_failure(
         if cycle["success"]:
             assert cycle["judgement"]["place_error_mm"] < 20.0
     if result.success:
-        assert len(result.cycles) == 3  # the table is cleared
+        assert len(result.cycles) == FUZZ_BLOCKS  # the table is cleared

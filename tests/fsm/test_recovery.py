@@ -119,14 +119,16 @@ def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Pat
 
 @pytest.mark.e2e
 def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> None:
-    """With three regrasps allowed, the same squeeze failure (random scene 104's fourth call for
-    a regrasp) ends the episode with the reason of Grasp Object (fingers cannot reach), not the
-    regrasp's."""
-    result = _random_episode(104, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=3))
+    """With no regrasp allowed, random scene 104's first call for one (Posture Control's, after
+    its posture retries: the thumb short) ends the episode there, with Posture Control's own
+    reason, not the regrasp's; no visit goes back to Fine Reach. (Its fourth call, with three
+    allowed, is the squeeze's: the same bound, 2.5 times the run.)"""
+    result = _random_episode(104, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0))
     assert not result.success
-    assert result.failure == "fingers cannot reach"
-    assert "squeeze did not reach the grip force" in result.failure_detail
-    assert result.visits[-1].state == State.GRASP_OBJECT.value
+    assert result.failure == "contact unreachable after posture retries"
+    assert result.failure_detail.startswith("after 0 regrasps"), result.failure_detail
+    assert result.visits[-1].state == State.POSTURE_CONTROL.value
+    assert State.FINE_REACH.value not in {v.next for v in result.visits[3:]}
 
 
 @pytest.mark.e2e
