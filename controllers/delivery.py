@@ -48,7 +48,7 @@ MAX_EXTRA_RISE = 0.30
 #: tilt), and a hand turned about the block may clear a neighbour the first two do not.
 SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.0]))
 #: Sine of the held hand's tool axis's tilt from the vertical below which any turn about the
-#: vertical is within the 5-joint arm's reach (:func:`reachable_turn`). When no turn of
+#: vertical is within the 5-joint arm's reach (:func:`reachable_turns`). When no turn of
 #: SET_DOWN_TURNS gives a set-down, each is moved to the nearest turn the arm can hold a hand
 #: tilted more than this at, and those are tried.
 ALIGNED_TILT = 1e-3
@@ -79,28 +79,27 @@ def _rotate_z(angle: float) -> NDArray[np.float64]:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def reachable_turn(
-    turn: float,
+def reachable_turns(
     pivot: NDArray[np.float64],
     shift: NDArray[np.float64],
     flange: NDArray[np.float64],
     axis: NDArray[np.float64],
     base: NDArray[np.float64],
-) -> float:
-    """The turn (rad) nearest ``turn`` at which the 5-joint arm can hold the hand turned about
-    the vertical through ``pivot`` (the held block's centre) and moved by ``shift``.
+) -> list[float] | None:
+    """The turns (rad) at which the 5-joint arm can hold the hand turned about the vertical
+    through ``pivot`` (the held block's centre) and moved by ``shift``; None when any turn is.
 
     The arm's shoulder, elbow and wrist pitch turn about parallel horizontal axes, so its tool
     axis (the wrist roll's, through the flange) always lies in a vertical plane through the
-    waist axis at ``base``. Turning a hand that points straight down keeps it there at any turn;
-    a tilted hand (the held grasp's palm ``ALIGNED_TILT`` or more off the vertical, or a lateral
-    grasp's horizontal palm) turned about the vertical leaves that plane except where the
-    horizontal projection of its tool axis, through the moved ``flange`` along the turned
+    waist axis at ``base``. Turning a hand that points straight down keeps it there at any turn
+    (None); a tilted hand (the held grasp's palm ``ALIGNED_TILT`` or more off the vertical, or a
+    lateral grasp's horizontal palm) turned about the vertical leaves that plane except where
+    the horizontal projection of its tool axis, through the moved ``flange`` along the turned
     ``axis``, passes through ``base``: the zeros of a cross product over the turn, bracketed on
-    :data:`TURN_SAMPLES` turns and found by Brent's method. Without any, ``turn`` itself."""
+    :data:`TURN_SAMPLES` turns and found by Brent's method."""
     a = np.asarray(axis, dtype=float)[:2]
     if np.linalg.norm(a) < ALIGNED_TILT:
-        return float(turn)
+        return None
     lever = np.asarray(flange, dtype=float)[:2] - pivot[:2]
     origin = pivot[:2] + shift[:2] - base[:2]
 
@@ -112,14 +111,31 @@ def reachable_turn(
 
     grid = np.linspace(-np.pi, np.pi, TURN_SAMPLES + 1)
     values = np.array([off_plane(t) for t in grid])
-    roots = [
-        brentq(off_plane, grid[i], grid[i + 1]) if values[i + 1] != 0.0 else grid[i + 1]
+    return [
+        float(brentq(off_plane, grid[i], grid[i + 1])) if values[i + 1] != 0.0 else grid[i + 1]
         for i in np.flatnonzero(values[:-1] * values[1:] <= 0.0)
     ]
-    if not roots:
+
+
+def reachable_turn(
+    turn: float,
+    pivot: NDArray[np.float64],
+    shift: NDArray[np.float64],
+    flange: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    base: NDArray[np.float64],
+) -> float:
+    """The turn (rad) nearest ``turn`` of :func:`reachable_turns` (``turn`` itself when any
+    turn is reachable or none is)."""
+    return _nearest_turn(turn, reachable_turns(pivot, shift, flange, axis, base))
+
+
+def _nearest_turn(turn: float, turns: list[float] | None) -> float:
+    """Of ``turns`` the one nearest ``turn`` round the circle; ``turn`` for None or none."""
+    if not turns:
         return float(turn)
-    gap = np.abs(np.angle(np.exp(1j * (np.array(roots) - turn))))
-    return float(roots[int(np.argmin(gap))])
+    gap = np.abs(np.angle(np.exp(1j * (np.array(turns) - turn))))
+    return float(turns[int(np.argmin(gap))])
 
 
 def rise_until_clear(
@@ -276,16 +292,17 @@ def _held_turns(
     base: NDArray[np.float64],
 ) -> list[float]:
     """Each of ``turns`` beyond the first two moved to the nearest turn the arm can hold the
-    hand at (:func:`reachable_turn`, the hand as it is at ``q0``), once each, without the first
+    hand at (:func:`reachable_turns`, the hand as it is at ``q0``), once each, without the first
     two (within 1 mrad: the waist already holds the hand at those). One may equal a turn of
     ``turns``: it is tried again from another IK seed (:func:`_turned_seed`)."""
     flange = checker.model.body(robot.arm_name("flange")).id
     checker.palm_pose(q0)
     flange_at = checker.data.xpos[flange].copy()
     axis = checker.data.xmat[flange, 2::3].copy()
+    reachable = reachable_turns(pivot, shift, flange_at, axis, base)
     held: list[float] = []
     for t in turns[2:]:
-        h = reachable_turn(t, pivot, shift, flange_at, axis, base)
+        h = _nearest_turn(t, reachable)
         if all(abs(np.angle(np.exp(1j * (h - u)))) > 1e-3 for u in [*turns[:2], *held]):
             held.append(h)
     return held
