@@ -68,8 +68,9 @@ class DeliveryPlan:
     transit: ArmPath | None  #: the harmonic part
     block_goal: NDArray[np.float64] | None  #: (3,) block centre at the end
     reason: str
-    #: "" when the set-down keeps the planning clearance, else how it is lowered instead
-    #: (:func:`_set_down_path` with ``rise``)
+    #: "" when the set-down keeps the planning clearance with the hand as it holds the block
+    #: (or turned with the waist), else how it is lowered instead (:func:`_set_down_path` with
+    #: ``rise``) and how far the hand is turned about the place point, "; "-separated
     set_down: str = ""
 
 
@@ -272,15 +273,18 @@ def plan_delivery(
     down = set_down[-1]
     path = dedupe_path(np.vstack([*lead[:-1], transit.path, set_down[1:]]))
     block_goal, _ = checker.carried_pose(down)
-    how = ""
+    how = []
     if rise:
         risen = checker.palm_pose(set_down[0])[0][2] - checker.palm_pose(set_down[-2])[0][2]
-        how = (
+        how.append(
             f"lowered keeping {SET_DOWN_CLEARANCE * 1000:.0f} mm (not {clearance * 1000:.0f} "
             "mm) from everything"
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
-    return DeliveryPlan(True, path, transit, block_goal, "reached goal", how)
+    extra = float(np.angle(np.exp(1j * (t - turn))))
+    if abs(extra) > 1e-3 and abs(np.angle(np.exp(1j * t))) > 1e-3:
+        how.append(f"turned {np.degrees(extra):+.0f} deg about the place point beyond the waist")
+    return DeliveryPlan(True, path, transit, block_goal, "reached goal", "; ".join(how))
 
 
 def _held_turns(

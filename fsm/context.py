@@ -104,8 +104,9 @@ class CycleRecord:
     lift_height: float | None = None  #: m, block rise during the lift
     lift_slip: float | None = None  #: m, palm rise minus block rise
     lift_clearance: float = 0.0  #: m, highest block bottom above the table while carried
-    #: how Deliver's plan lowers the block: "" keeping the planning clearance, else how it does
-    #: (controllers.delivery: nearer its neighbours, from above them)
+    #: how Deliver's plan lowers the block: "" keeping the planning clearance with the hand as
+    #: it holds it, else how it does (controllers.delivery: nearer its neighbours, from above
+    #: them, turned about the place point)
     set_down: str = ""
     judgement: dict[str, Any] | None = None
     success: bool = False

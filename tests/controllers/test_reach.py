@@ -317,6 +317,8 @@ def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_plac
     world = _holding_the_pentagon(crowded)
     second = plan_delivery(world, "pentagon", scene.place)
     assert second.found, second.reason
+    assert first.set_down == ""
+    assert "deg about the place point beyond the waist" in second.set_down
     np.testing.assert_allclose(second.block_goal[:2], place, atol=2e-3)
     turned = abs(
         np.angle(

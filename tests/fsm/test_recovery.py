@@ -173,7 +173,10 @@ def test_a_place_point_the_held_hand_cannot_set_down_at_is_reached_turned(tmp_pa
     posture there (under the old rule it went to a free slot 8 cm away). Turned about the place
     point (controllers.delivery.SET_DOWN_TURNS) the hand clears it: even with --place-fallback
     nearest the block is set down where it was asked, judged physically there, not elsewhere.
-    The planar grasp model's hold, the one this scene was found with."""
+    The planar grasp model's hold, the one this scene was found with. (Since Posture Control's
+    hold keeps the pads out of the block the grasp here differs and its set-down needs no turn
+    (its summary's ``set_down`` is empty); the turns themselves are tested in
+    tests/controllers/test_reach.py.)"""
     scene = episode_scene("random", 18, blocks_for_seed(18, 3, 5))
     options = EpisodeOptions(
         scene="random",
