@@ -52,6 +52,8 @@ SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.
 #: SET_DOWN_TURNS gives a set-down, each is moved to the nearest turn the arm can hold a hand
 #: tilted more than this at, and those are tried.
 ALIGNED_TILT = 1e-3
+#: Turns (rad) closer than this are the same turn.
+SAME_TURN = 1e-3
 #: Turns (over a full circle) sampled to bracket the reachable turns before Brent's method.
 TURN_SAMPLES = 720
 
@@ -131,11 +133,16 @@ def reachable_turn(
     return _nearest_turn(turn, reachable_turns(pivot, shift, flange, axis, base))
 
 
+def _wrap(angle: ArrayLike) -> NDArray[np.float64]:
+    """``angle`` (rad) wrapped into (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(angle, dtype=float)))
+
+
 def _nearest_turn(turn: float, turns: list[float] | None) -> float:
     """Of ``turns`` the one nearest ``turn`` round the circle; ``turn`` for None or none."""
     if not turns:
         return float(turn)
-    gap = np.abs(np.angle(np.exp(1j * (np.array(turns) - turn))))
+    gap = np.abs(_wrap(np.array(turns) - turn))
     return float(turns[int(np.argmin(gap))])
 
 
@@ -281,8 +288,8 @@ def plan_delivery(
             "mm) from everything"
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
-    extra = float(np.angle(np.exp(1j * (t - turn))))
-    if abs(extra) > 1e-3 and abs(np.angle(np.exp(1j * t))) > 1e-3:
+    extra = float(_wrap(t - turn))
+    if abs(extra) > SAME_TURN and abs(_wrap(t)) > SAME_TURN:
         how.append(f"turned {np.degrees(extra):+.0f} deg about the place point beyond the waist")
     return DeliveryPlan(True, path, transit, block_goal, "reached goal", "; ".join(how))
 
@@ -307,7 +314,7 @@ def _held_turns(
     held: list[float] = []
     for t in turns[2:]:
         h = _nearest_turn(t, reachable)
-        if all(abs(np.angle(np.exp(1j * (h - u)))) > 1e-3 for u in [*turns[:2], *held]):
+        if all(abs(_wrap(h - u)) > SAME_TURN for u in [*turns[:2], *held]):
             held.append(h)
     return held
 
