@@ -98,7 +98,8 @@ def tendon_lift(
     """The lift test on the tendon hand: the rig with ``TENDON_HAND`` at ``found``, its joint loop
     holding every flexion ``SQUEEZE`` past contact for 0.5 s, the ``LIFT`` ramp, a 1 s hold;
     every ``sample_period`` s of simulated time ``on_sample(model, data, estimate)`` gets the
-    contact forces estimated from the tendon tensions (:mod:`hand_sim.contact_estimate`)."""
+    contact forces estimated from the tendon tensions (:mod:`hand_sim.contact_estimate`), with
+    the least force the tensions allow."""
     model, data = lift_rig(found, TENDON_HAND)
     drive = TendonHandController.for_model(model, prefix="hand/").drive
     est = ContactEstimator.for_model(model, "hand/")
@@ -115,7 +116,7 @@ def tendon_lift(
             drive.step(model, data, target)
             memory.update(data.qvel[est.layout.dof_adr])
             if round(data.time / dt) % every == 0:
-                on_sample(model, data, est.estimate(model, data, memory.direction))
+                on_sample(model, data, est.estimate(model, data, memory.direction, least=True))
 
     run(0.5)
     for k in range(1, LIFT_STEPS + 1):

@@ -241,13 +241,14 @@ def _hand_contacts(world: World, target_body: int) -> tuple[float, set[tuple[str
     return depth, others
 
 
-def guarded_pad_forces(world: World) -> NDArray[np.float64]:
-    """(4,) pad forces (N) the touch guard reacts to: with touch pads, the pads' normal forces on
-    anything but the robot (:func:`hand_sim.contacts.pad_object_forces`); the tendon hand, which
-    senses no contact directly, its estimate from the tendon tensions (``World.touch``)."""
+def touch_guard(world: World) -> NDArray[np.bool_]:
+    """(4,) fingers the touch guard stops: with touch pads, a pad pressing on anything but the
+    robot above :data:`TOUCH_GUARD` (:func:`hand_sim.contacts.pad_object_forces`); the tendon
+    hand, which senses no contact directly, a finger whose tensions need a pad force above it
+    whatever its stuck joints' friction (``World.touch_felt``)."""
     if world.touch_source == TOUCH_TENDONS:
-        return world.touch()
-    return pad_object_forces(world)
+        return world.touch_felt(TOUCH_GUARD)
+    return world.touch_felt(TOUCH_GUARD, forces=pad_object_forces(world))
 
 
 def fine_reach(
@@ -269,8 +270,7 @@ def fine_reach(
 
     Each fingertip is steered ``standoff`` m outside its surface point. Touch guard: a fingertip
     whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`; the tendon
-    hand: whose estimated pad force exceeds ``World.touch_guard_floor()``,
-    :func:`guarded_pad_forces`)
+    hand: whose tensions need a pad force above it, :func:`touch_guard`)
     stops where it is, so a finger arriving early does not push the block before the others
     arrive.
 
@@ -295,7 +295,7 @@ def fine_reach(
     periods = 0
     for _ in range(round(max_time / CONTROL_PERIOD)):
         tips = world.fingertip_positions()
-        stopped |= guarded_pad_forces(world) > np.maximum(TOUCH_GUARD, world.touch_guard_floor())
+        stopped |= touch_guard(world)
         err = np.linalg.norm(tips - goals, axis=1)
         if np.all((err < 0.5 * tolerance) | stopped):
             break

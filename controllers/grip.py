@@ -45,7 +45,7 @@ MAX_PRE_CONTACT = 0.024
 #: PRE_CONTACT + SQUEEZE_REACH = 18 mm, so about 18 mm/s at the fingertip).
 CLOSE_RATE = 1.0
 #: A pad "feels" the block above this normal force (N) (for the tendon hand, whose touch is
-#: estimated from its tendon tensions, above ``World.touch_guard_floor()`` if that is higher).
+#: estimated from its tendon tensions: the least force its tensions allow, ``World.touch_felt``).
 TOUCH_THRESHOLD = 0.05
 #: Closing gives up when a finger has gone this far past its line's end without touching.
 CLOSE_OVERRUN = 0.5
@@ -320,7 +320,7 @@ def close(world: World, grip: Grip, *, max_time: float = CLOSE_TIME) -> CloseRes
     t0 = world.time
     rate = CLOSE_RATE * CONTROL_PERIOD
     while world.time - t0 < max_time:
-        grip.touched |= world.touch() > np.maximum(TOUCH_THRESHOLD, world.touch_guard_floor())
+        grip.touched |= world.touch_felt(TOUCH_THRESHOLD)
         if grip.touched.all() or grip.progress.max() > 1.0 + CLOSE_OVERRUN:
             break
         grip.progress = np.where(grip.touched, grip.progress, grip.progress + rate)

@@ -29,9 +29,14 @@ the state the sensors sampled:
 A joint that is not sliding holds its friction at any value in [-F, F] (stiction), and the
 memory's sign can be wrong (an overshoot, a load that reversed): the estimate cannot see it. It
 reports how far that unknown friction can move |f| (``uncertainty``: the fit's column norms times
-F over the stuck joints), and the guards ask a new touch to exceed :data:`DETECTION_THRESHOLD`
-plus twice that (``World.touch_guard_floor``). Everything is numpy on a compiled MuJoCo model and
-its data; no global state (the friction memory belongs to its World).
+F over the stuck joints) and, asked for it (``least=True``), the **least** pad force the sensed
+torques allow: the smallest |f| of the fit over every stuck joint's friction in [-F, F] (each
+stuck joint's external torque in a band of +-F about its value without friction, the sliding
+joints' exact), a bounded least-squares problem (``scipy.optimize.lsq_linear``). It is 0 when
+friction alone can hold the finger where it is, and above 0 only when no friction the joints
+can have explains the tensions without a contact; the guards take a new touch where it exceeds
+:data:`DETECTION_THRESHOLD` (``World.touch_felt``). Everything is numpy on a compiled MuJoCo
+model and its data; no global state (the friction memory belongs to its World).
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import lsq_linear
 
 from hand_sim import robot
 from hand_sim.tendon_drive import TendonLayout, joint_torques
@@ -56,8 +62,9 @@ LIMIT_MARGIN = 0.01
 #: turns a few hundredths of a newton-metre of torque error into tens of newtons there.
 RIDGE = 0.003
 #: The least estimated pad force (N) the tendon hand's guards take for contact: a held contact is
-#: kept above it (``World.touch_floor``); a new touch must exceed it plus twice the stiction
-#: uncertainty (``World.touch_guard_floor``). A freely moving finger reads below it (tested).
+#: kept above it (``World.touch_floor``); a new touch is taken where the least force the tensions
+#: allow (``ContactEstimate.least``) exceeds it (``World.touch_felt``). A freely moving finger
+#: reads below it (tested).
 DETECTION_THRESHOLD = 0.5
 
 
@@ -90,6 +97,9 @@ class ContactEstimate:
     at_limit: NDArray[np.bool_]  #: (16,) joints left out of the fit (at a range limit)
     #: (4,) N: how far the stuck joints' unknown friction (up to F each) can move |f|
     uncertainty: NDArray[np.float64]
+    #: (4,) N: the least |f| the sensed torques allow, each stuck joint's friction anywhere in
+    #: [-F, F] (:func:`least_force`); None unless asked for (``estimate(least=True)``)
+    least: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -160,10 +170,16 @@ class ContactEstimator:
         model: mujoco.MjModel,
         data: mujoco.MjData,
         sliding: NDArray[np.float64] | None = None,
+        *,
+        least: bool = False,
     ) -> ContactEstimate:
         """The estimated pad forces in ``data``'s present state (kinematics and sensors must be
         current, as after ``mj_step`` or ``mj_forward``); ``sliding`` as in
-        :meth:`external_torque`."""
+        :meth:`external_torque`; ``least``: also the least force the torques allow (module
+        docstring)."""
+        qdot = data.qvel[self.layout.dof_adr]
+        if sliding is None:
+            sliding = np.where(np.abs(qdot) > MOVING_SPEED, np.sign(qdot), 0.0)
         tau_ext = self.external_torque(model, data, sliding)
         q = data.qpos[self.layout.qpos_adr]
         lo, hi = self.joint_range.T
@@ -172,7 +188,7 @@ class ContactEstimator:
         per = robot.JOINTS_PER_FINGER
         force, point = np.zeros((n, 3)), np.zeros((n, 3))
         uncertainty = np.zeros(n)
-        qdot = data.qvel[self.layout.dof_adr]
+        lows = np.zeros(n) if least else None
         stuck_friction = np.where(np.abs(qdot) > MOVING_SPEED, 0.0, self.friction)
         jac = np.zeros((3, model.nv))
         for f in range(n):
@@ -194,7 +210,12 @@ class ContactEstimator:
                     break
                 p = centre + self.pad_radius * fv / size
             force[f], point[f] = fv, p
-            uncertainty[f] = float(np.linalg.norm(solver, axis=0) @ stuck_friction[rows][keep])
+            band = stuck_friction[rows][keep]
+            uncertainty[f] = float(np.linalg.norm(solver, axis=0) @ band)
+            if lows is not None:
+                # the stuck joints' torques without the memory's friction, +- F about that
+                centre = tau_ext[rows][keep] + band * sliding[rows][keep]
+                lows[f] = least_force(solver, centre, band)
         return ContactEstimate(
             normal=np.linalg.norm(force, axis=1),
             force=force,
@@ -202,4 +223,21 @@ class ContactEstimator:
             point=point,
             at_limit=at_limit,
             uncertainty=uncertainty,
+            least=lows,
         )
+
+
+def least_force(
+    solver: NDArray[np.float64], centre: NDArray[np.float64], band: NDArray[np.float64]
+) -> float:
+    """min |solver tau| over the torques tau with |tau_j - centre_j| <= band_j: the least force
+    (N) the fit ``solver`` (3, k) gives for joint torques known only within a band (a stuck
+    joint's friction, anywhere in [-F, F]); a joint with band 0 is fixed at its centre. 0 when
+    the box holds a torque the fit maps to no force (e.g. torques friction alone explains)."""
+    free = band > 0
+    fixed = solver[:, ~free] @ centre[~free]
+    if not free.any():
+        return float(np.linalg.norm(fixed))
+    lo, hi = centre[free] - band[free], centre[free] + band[free]
+    found = lsq_linear(solver[:, free], -fixed, bounds=(lo, hi), method="bvls")
+    return float(np.linalg.norm(solver[:, free] @ found.x + fixed))

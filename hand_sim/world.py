@@ -363,16 +363,22 @@ class World:
         (:data:`hand_sim.contact_estimate.DETECTION_THRESHOLD`)."""
         return DETECTION_THRESHOLD if self.contact_estimator is not None else 0.0
 
-    def touch_guard_floor(self) -> NDArray[np.float64]:
-        """(4,) forces (N) :meth:`touch` must exceed before a guard may take it for a new
-        contact: 0 for the touch pads; for the tendon hand, the floor plus twice the estimate's
-        stiction uncertainty now (a stuck joint's friction can be wrong by up to 2F), so that
-        a finger at rest, its friction unknown, is not taken for a touching one
-        (:class:`~hand_sim.contact_estimate.ContactEstimate`)."""
+    def touch_felt(self, threshold: float, forces: ArrayLike | None = None) -> NDArray[np.bool_]:
+        """(4,) whether a guard may take each finger for touching now: with touch pads, its pad
+        force (``forces``, default :meth:`touch_sensors`) above ``threshold``; for the tendon
+        hand, the least pad force its tensions allow, every stuck joint's friction anywhere in
+        [-F, F] (:attr:`~hand_sim.contact_estimate.ContactEstimate.least`), above ``threshold``
+        and :data:`~hand_sim.contact_estimate.DETECTION_THRESHOLD`: a finger that friction alone
+        could hold where it is is not taken for a touching one, and a finger pressing harder than
+        its friction could explain is, however unsure the estimate's friction."""
         if self.contact_estimator is None:
             self._require_robot()
-            return np.zeros(len(robot.FINGERS))
-        return DETECTION_THRESHOLD + 2.0 * self.contact_estimate().uncertainty
+            pads = self.touch_sensors() if forces is None else np.asarray(forces, dtype=float)
+            return pads > threshold
+        least = self.contact_estimator.estimate(
+            self.model, self.data, self.friction_memory.direction, least=True
+        ).least
+        return np.asarray(least) > max(threshold, DETECTION_THRESHOLD)
 
     def touch(self) -> NDArray[np.float64]:
         """(4,) fingertip normal forces (N), order ff, mf, rf, th, as the hand senses them: the
