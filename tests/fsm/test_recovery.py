@@ -32,9 +32,12 @@ def _random_episode(
     config: TaskConfig = DEFAULT_CONFIG,
     grasp_model: str | None = None,
     hand: str | None = None,
+    approach: str = "auto",
+    block_range: tuple[int, int] = (3, 5),
 ):
-    """The bench's episode of ``seed`` (random scene, 3-5 blocks), tuned by ``config``, on the
-    default grasp model or ``grasp_model`` and the default hand or ``hand``."""
+    """The bench's episode of ``seed`` (random scene, ``block_range`` blocks), tuned by
+    ``config``, on the default grasp model or ``grasp_model``, the default hand or ``hand``, by
+    ``approach``."""
     model = {} if grasp_model is None else {"grasp_model": grasp_model}
     if hand is not None:
         model["hand"] = hand
@@ -42,8 +45,9 @@ def _random_episode(
         **model,
         scene="random",
         seed=seed,
-        blocks=blocks_for_seed(seed, 3, 5),
+        blocks=blocks_for_seed(seed, *block_range),
         controller=CONTROLLER,
+        approach=approach,
         out=out,
         record=False,
         config=config,
@@ -98,16 +102,7 @@ def test_a_finger_fine_reach_leaves_far_off_gives_up_with_its_reason(tmp_path: P
     more than 3 cm (``fine_reach_give_up``) from its surface point without touching anything, so
     Fine Reach asks for a regrasp; there is no other palm pose beside the block, and the episode
     fails naming the finger and its distance ("fingers cannot reach")."""
-    options = EpisodeOptions(
-        scene="random",
-        seed=4,
-        blocks=blocks_for_seed(4, 1, 3),
-        controller=CONTROLLER,
-        approach="lateral",
-        out=tmp_path,
-        record=False,
-    )
-    result = run_episode(options)
+    result = _random_episode(4, tmp_path, approach="lateral", block_range=(1, 3))
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
     assert not result.success and result.failure == "fingers cannot reach", log
     gave_up = re.match(r"(\w\w) stayed (\d+) mm from its surface point", result.failure_detail)
