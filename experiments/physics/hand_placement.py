@@ -14,10 +14,12 @@ needs each grasp placed quickly and the same way every time, not the task cycle'
   the task cycle's reach cost (total squared fingertip-to-contact distance, each contact at its
   fingertip's height). The task cycle's rule (the nearest assignment only, ranked by distance)
   gives a finger a face its pad turns away from on most evenly spread grasps (a square with one
-  contact per face); see docs/physics_study.md for the counts;
+  contact per face); see docs/physics_study.md for the counts. The ranked pairs are then taken
+  in turn from each kind of seed (palm gap and pre-shape depth, :func:`interleaved_starts`):
+  the ranking alone puts one kind in every early place;
 - **Posture Control** (the task cycle's IK seeding for a top grasp, one implementation:
   :func:`controllers.palm_pose.search_seeds`): from each of the first :data:`SEEDS_TRIED`
-  (seed, assignment) pairs, arm and hand IK (:func:`controllers.posture.solve_posture`,
+  (seed, assignment) pairs so taken, arm and hand IK (:func:`controllers.posture.solve_posture`,
   ``joints="arm+hand"``, collision avoidance with the fingers allowed to touch the block,
   fingertips :data:`SQUEEZE_REACH` inside each contact and pads facing it,
   :func:`controllers.hand_reach.grip_targets`); a posture that tilts the palm more than
@@ -64,7 +66,8 @@ PALM_GAPS = (0.005, 0.02)
 YAWS = 12
 #: (seed posture, finger assignment) pairs Posture Control starts from per grasp, best first.
 #: Chosen by looking at the result: on 5 grasps x 3 controllers of six objects (90 grasps, seed
-#: 0) 6 placed 76, 12 placed 77 at about twice the time of a grasp no pair places.
+#: 0) 6 placed 76, 12 placed 77 at about twice the time of a grasp no pair places (with the
+#: pairs in rank order, before :func:`interleaved_starts`).
 SEEDS_TRIED = 6
 #: Largest tilt (rad) of the palm's approach axis from vertical (the task cycle's limit for a
 #: top grasp, :attr:`controllers.palm_candidates.PalmPoseParams.max_palm_tilt_top`).
@@ -86,6 +89,8 @@ class HandPosture:
     qpos: NDArray[np.float64]  #: full world qpos (arm, hand; the rest as the world has it)
     tips: NDArray[np.float64]  #: (4, 3) fingertip positions there
     pads: NDArray[np.float64]  #: (4, 3) pad normals (out of the pad) there
+    gap: float = 0.0  #: m, the palm face's height above the block's top
+    depth: float = 0.0  #: m below the top, where the pre-shape put the fingertips
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +156,9 @@ def top_postures(
         data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         out.append(
-            HandPosture(float(yaw), qpos, fingertips_at(model, qpos), pad_normals(model, data))
+            HandPosture(
+                float(yaw), qpos, fingertips_at(model, qpos), pad_normals(model, data), gap, depth
+            )
         )
     return out
 
@@ -193,6 +200,26 @@ def ranked_starts(
     return out
 
 
+def interleaved_starts(
+    pairs: list[tuple[HandPosture, FingerContacts]], count: int
+) -> list[tuple[HandPosture, FingerContacts]]:
+    """The first ``count`` of ``pairs`` (ranked, :func:`ranked_starts`) taken in turn from each
+    kind of seed posture (palm gap and pre-shape depth), each kind's best first, the kinds in
+    the order of their best start: every kind of start is tried before any is tried twice. The
+    ranking alone gives one kind every early place (its fingertips sit nearest the contacts),
+    and the others, the starts that differ, are never tried."""
+    kinds: dict[tuple[float, float], list[tuple[HandPosture, FingerContacts]]] = {}
+    for pair in pairs:
+        kinds.setdefault((pair[0].gap, pair[0].depth), []).append(pair)
+    queues = list(kinds.values())
+    out: list[tuple[HandPosture, FingerContacts]] = []
+    for turn in itertools.count():
+        if len(out) == count or not any(turn < len(q) for q in queues):
+            break
+        out.extend(q[turn] for q in queues if turn < len(q))
+    return out[:count]
+
+
 def place_hand(
     world: World,
     prism: PerceivedPrism,
@@ -214,7 +241,7 @@ def place_hand(
         return Placement(False, "the arm reaches no palm-down posture over the block")
     th = np.asarray(theta, dtype=float)
     checker = CollisionChecker(world) if checker is None else checker
-    pairs = ranked_starts(target, th, postures, prism.bottom, heights)[:seeds]
+    pairs = interleaved_starts(ranked_starts(target, th, postures, prism.bottom, heights), seeds)
     found = search_seeds(
         ReachQuery(world, None, prism, target),
         th,

@@ -18,7 +18,15 @@ import pytest
 from controllers.cspace import PALM_SITE
 from controllers.finger_geometry import fingertips_at, pad_normals
 from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
-from experiments.physics.hand_placement import MAX_PALM_TILT, place_hand
+from experiments.physics.hand_placement import (
+    DOWN,
+    MAX_PALM_TILT,
+    SEEDS_TRIED,
+    HandPosture,
+    interleaved_starts,
+    place_hand,
+    ranked_starts,
+)
 from experiments.physics.report import QUICK_OBJECTS
 from experiments.physics.roc import auc_mann_whitney, roc
 from experiments.physics.study import (
@@ -140,14 +148,14 @@ def test_a_grasp_gives_the_same_result_in_its_own_process_and_chunk(quick) -> No
 
 @pytest.mark.e2e
 def test_a_3d_grasp_out_of_reach_at_the_tasks_height_is_taken_and_held_higher_up() -> None:
-    """Seed 0, irregular hexagon, KB grasp 1: the hand cannot take its contacts at the task's
+    """Seed 0, irregular hexagon, KB grasp 5: the hand cannot take its contacts at the task's
     best common height (the lowest); tried higher in turn, it takes them 5 mm or more up, all
     together, and the block is held through the physical test."""
     from controllers.grasp.objects import PAPER_OBJECTS
     from controllers.grasp.task_height import HEIGHT_GAP
 
     obj = "irregular_hexagon"
-    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (1,), 0, "3d")
+    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (5,), 0, "3d")
     [only] = run_job(dataclasses.replace(job, height_tries=1))
     [tried] = run_job(job)
     assert only["result"] == "unreachable" and only["height_rank"] == 0
@@ -182,6 +190,104 @@ def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() 
     assert error.max() <= CONTACT_TOLERANCE
     cosine = -np.einsum("fd,fd->f", pad_normals(model, data), placed.contacts.normals)
     assert np.all(cosine >= np.cos(MAX_PAD_ANGLE))
+
+
+def _posture(gap: float, depth: float) -> HandPosture:
+    return HandPosture(0.0, np.zeros(3), np.zeros((4, 3)), np.zeros((4, 3)), gap, depth)
+
+
+def test_interleaved_starts_try_every_kind_of_seed_before_any_kind_twice() -> None:
+    kinds = [(0.005, 0.04), (0.02, 0.04), (0.005, 0.06)]
+    rng = np.random.default_rng(3)
+    # a ranking in which the first kind holds the first five places
+    order = [0] * 5 + list(rng.integers(0, 3, 20))
+    pairs = [(_posture(*kinds[k]), object()) for k in order]
+    out = interleaved_starts(pairs, 7)
+    got = [(p.gap, p.depth) for p, _ in out]
+    assert len(out) == 7
+    assert set(got[:3]) == set(kinds)  # each kind once before any twice
+    assert set(got[3:6]) == set(kinds)
+    # each kind's own starts keep their ranked order, and the kinds go by their best start
+    for kind in kinds:
+        ranked = [c for p, c in pairs if (p.gap, p.depth) == kind]
+        mine = [c for p, c in out if (p.gap, p.depth) == kind]
+        assert mine == ranked[: len(mine)]
+    firsts = sorted(kinds, key=lambda k: order.index(kinds.index(k)))
+    assert got[:3] == firsts
+    # fewer pairs than asked: all of them, none twice
+    assert len(interleaved_starts(pairs[:4], 10)) == 4
+
+
+def test_a_square_grasp_the_best_ranked_starts_miss_is_placed_from_another_kind_of_seed() -> None:
+    """Seed 0, square, KB grasp 0 (3-D, at the task's height): the six best-ranked (seed,
+    assignment) pairs come from two of the four kinds of seed (the square's quarter turns give
+    each problem four times) and none places it; taken in turn from each kind, the same number
+    of starts does, from a kind the ranking left out, fingertips on the contacts."""
+    from controllers.grasp.objects import PAPER_OBJECTS
+    from controllers.grasp.registry import make_composer
+    from controllers.grip import GRIP_FORCE
+    from controllers.palm_pose import ReachQuery, SeedStart, search_seeds
+    from experiments.physics.study import initial_contacts
+    from experiments.physics.synthesis import synthesize
+    from hand_sim.blocks import GEOM_SUFFIX
+
+    obj = "square"
+    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (0,), 0, "3d")
+    sw = StudyWorld.of(obj, "3d")
+    theta0, rng = initial_contacts(job, 0)
+    spec = sw.world.scene.block(sw.name)
+    syn = synthesize(
+        "3d",
+        sw.target.polygon,
+        spec.height,
+        make_composer("kb"),
+        theta0,
+        rng,
+        load=sw.world.block_weight(sw.name) / GRIP_FORCE,
+        yaw=-sw.target.yaw,
+    )
+    heights = sw.target.top_z - 0.5 * spec.height + syn.heights
+    ranked = ranked_starts(sw.target, syn.theta, sw.postures, sw.prism.bottom, heights)
+    first = ranked[:SEEDS_TRIED]
+    kinds = {(p.gap, p.depth) for p in sw.postures}
+    assert len(kinds) == 4
+    assert len({(p.gap, p.depth) for p, _ in first}) < len(kinds)
+    assert {(p.gap, p.depth) for p, _ in interleaved_starts(ranked, SEEDS_TRIED)} == kinds
+
+    def search(pairs):
+        return search_seeds(
+            ReachQuery(sw.world, None, sw.prism, sw.target),
+            syn.theta,
+            (SeedStart(str(i), p.qpos, c) for i, (p, c) in enumerate(pairs)),
+            checker=sw.checker,
+            axis=DOWN,
+            max_tilt=MAX_PALM_TILT,
+            touchable=sw.world.scene.target + GEOM_SUFFIX,
+            confirm_tries=1,
+            check_spacing=True,
+            axis_name="vertical",
+        )
+
+    assert not search(first).found
+    placed = place_hand(
+        sw.world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
+    )
+    assert placed.reachable, placed.reason
+    assert placed.seed is not None
+    assert (placed.seed.gap, placed.seed.depth) not in {(p.gap, p.depth) for p, _ in first}
+    assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
+    model = sw.world.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = placed.qpos
+    data.qpos[RobotIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
+    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
+    error = np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
+    assert error.max() <= CONTACT_TOLERANCE
+    np.testing.assert_allclose(
+        placed.contacts.points[:, 2],
+        heights[list(placed.contacts.contact_of_finger)],
+        atol=CONTACT_TOLERANCE,
+    )
 
 
 def test_a_block_the_hand_does_not_hold_is_dropped_when_the_table_goes() -> None:
