@@ -232,16 +232,33 @@ def place_hand(
     heights: ArrayLike | None = None,
 ) -> Placement:
     """Posture Control from the first ``seeds`` of :func:`ranked_starts` for contacts ``theta``
-    (contact coordinates on ``target``'s polygon): the task cycle's IK seeding
-    (:func:`controllers.palm_pose.search_seeds`) with these starts, the palm's tilt measured
-    from vertical; see the module docstring. ``checker``: the world's collision checker, for
-    the palm's pose (default: built here). ``heights``: world z of each contact (a 3-D grasp;
-    default: each at the height of its finger's tip, a planar grasp)."""
+    (contact coordinates on ``target``'s polygon), taken in turn from each kind of seed
+    (:func:`interleaved_starts`), with :func:`place_from`; see the module docstring.
+    ``checker``: the world's collision checker, for the palm's pose (default: built here).
+    ``heights``: world z of each contact (a 3-D grasp; default: each at the height of its
+    finger's tip, a planar grasp)."""
     if not postures:
         return Placement(False, "the arm reaches no palm-down posture over the block")
     th = np.asarray(theta, dtype=float)
-    checker = CollisionChecker(world) if checker is None else checker
     pairs = interleaved_starts(ranked_starts(target, th, postures, prism.bottom, heights), seeds)
+    return place_from(world, prism, target, th, pairs, checker=checker)
+
+
+def place_from(
+    world: World,
+    prism: PerceivedPrism,
+    target: ReachTarget,
+    theta: ArrayLike,
+    pairs: list[tuple[HandPosture, FingerContacts]],
+    *,
+    checker: CollisionChecker | None = None,
+) -> Placement:
+    """Posture Control for contacts ``theta`` from each of ``pairs`` (seed posture, contacts
+    given to its fingers) in order: the task cycle's IK seeding
+    (:func:`controllers.palm_pose.search_seeds`), the palm's tilt measured from vertical; the
+    first confirmed posture places the hand."""
+    th = np.asarray(theta, dtype=float)
+    checker = CollisionChecker(world) if checker is None else checker
     found = search_seeds(
         ReachQuery(world, None, prism, target),
         th,

@@ -19,11 +19,11 @@ from controllers.cspace import PALM_SITE
 from controllers.finger_geometry import fingertips_at, pad_normals
 from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
 from experiments.physics.hand_placement import (
-    DOWN,
     MAX_PALM_TILT,
     SEEDS_TRIED,
     HandPosture,
     interleaved_starts,
+    place_from,
     place_hand,
     ranked_starts,
 )
@@ -226,10 +226,8 @@ def test_a_square_grasp_the_best_ranked_starts_miss_is_placed_from_another_kind_
     from controllers.grasp.objects import PAPER_OBJECTS
     from controllers.grasp.registry import make_composer
     from controllers.grip import GRIP_FORCE
-    from controllers.palm_pose import ReachQuery, SeedStart, search_seeds
     from experiments.physics.study import initial_contacts
     from experiments.physics.synthesis import synthesize
-    from hand_sim.blocks import GEOM_SUFFIX
 
     obj = "square"
     job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (0,), 0, "3d")
@@ -254,21 +252,9 @@ def test_a_square_grasp_the_best_ranked_starts_miss_is_placed_from_another_kind_
     assert len({(p.gap, p.depth) for p, _ in first}) < len(kinds)
     assert {(p.gap, p.depth) for p, _ in interleaved_starts(ranked, SEEDS_TRIED)} == kinds
 
-    def search(pairs):
-        return search_seeds(
-            ReachQuery(sw.world, None, sw.prism, sw.target),
-            syn.theta,
-            (SeedStart(str(i), p.qpos, c) for i, (p, c) in enumerate(pairs)),
-            checker=sw.checker,
-            axis=DOWN,
-            max_tilt=MAX_PALM_TILT,
-            touchable=sw.world.scene.target + GEOM_SUFFIX,
-            confirm_tries=1,
-            check_spacing=True,
-            axis_name="vertical",
-        )
-
-    assert not search(first).found
+    assert not place_from(
+        sw.world, sw.prism, sw.target, syn.theta, first, checker=sw.checker
+    ).reachable
     placed = place_hand(
         sw.world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
     )
