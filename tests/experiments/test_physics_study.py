@@ -22,6 +22,7 @@ from experiments.physics.hand_placement import (
     MAX_PALM_TILT,
     SEEDS_TRIED,
     HandPosture,
+    Placement,
     interleaved_starts,
     place_from,
     place_hand,
@@ -167,6 +168,24 @@ def test_a_3d_grasp_out_of_reach_at_the_tasks_height_is_taken_and_held_higher_up
     assert max(tried["turn"].values()) <= MAX_TURN and max(tried["shift"].values()) <= MAX_SHIFT
 
 
+def _at_placement(model: mujoco.MjModel, placed: Placement) -> mujoco.MjData:
+    """``model`` with the arm where ``placed`` found it and the hand at its reach test's
+    posture, kinematics computed."""
+    assert placed.qpos is not None and placed.reach is not None
+    data = mujoco.MjData(model)
+    data.qpos[:] = placed.qpos
+    data.qpos[RobotIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
+    mujoco.mj_kinematics(model, data)
+    return data
+
+
+def _tip_errors(model: mujoco.MjModel, placed: Placement, data: mujoco.MjData) -> np.ndarray:
+    """Each fingertip's distance (m) from its grip target on the contacts ``placed`` gives it."""
+    assert placed.contacts is not None
+    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
+    return np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
+
+
 def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() -> None:
     """The grasp the old fixed-palm placement never reached (one contact per face: two fingers
     would take faces their pads turn away from), checked by the kinematics, not the verdict."""
@@ -179,15 +198,10 @@ def test_the_arm_moves_the_fingers_onto_a_contact_on_every_face_of_the_square() 
     assert sorted(placed.contacts.contact_of_finger) == [0, 1, 2, 3]
     assert placed.tilt is not None and placed.tilt <= MAX_PALM_TILT
     model = sw.world.model
-    data = mujoco.MjData(model)
-    data.qpos[:] = placed.qpos
-    data.qpos[RobotIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
-    mujoco.mj_kinematics(model, data)
+    data = _at_placement(model, placed)
     palm_z = data.site_xmat[model.site(PALM_SITE).id].reshape(3, 3)[:, 2]
     assert np.degrees(np.arccos(-palm_z[2])) <= np.degrees(MAX_PALM_TILT) + 1e-6
-    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
-    error = np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
-    assert error.max() <= CONTACT_TOLERANCE
+    assert _tip_errors(model, placed, data).max() <= CONTACT_TOLERANCE
     cosine = -np.einsum("fd,fd->f", pad_normals(model, data), placed.contacts.normals)
     assert np.all(cosine >= np.cos(MAX_PAD_ANGLE))
 
@@ -263,12 +277,7 @@ def test_a_square_grasp_the_best_ranked_starts_miss_is_placed_from_another_kind_
     assert (placed.seed.gap, placed.seed.depth) not in {(p.gap, p.depth) for p, _ in first}
     assert placed.qpos is not None and placed.contacts is not None and placed.reach is not None
     model = sw.world.model
-    data = mujoco.MjData(model)
-    data.qpos[:] = placed.qpos
-    data.qpos[RobotIndices.of(model).finger_qpos.ravel()] = placed.reach.hand_q
-    tips, _ = grip_targets(placed.contacts.points, placed.contacts.normals)
-    error = np.linalg.norm(fingertips_at(model, data.qpos) - tips, axis=1)
-    assert error.max() <= CONTACT_TOLERANCE
+    assert _tip_errors(model, placed, _at_placement(model, placed)).max() <= CONTACT_TOLERANCE
     np.testing.assert_allclose(
         placed.contacts.points[:, 2],
         heights[list(placed.contacts.contact_of_finger)],
