@@ -89,8 +89,8 @@ class HandPosture:
     qpos: NDArray[np.float64]  #: full world qpos (arm, hand; the rest as the world has it)
     tips: NDArray[np.float64]  #: (4, 3) fingertip positions there
     pads: NDArray[np.float64]  #: (4, 3) pad normals (out of the pad) there
-    gap: float = 0.0  #: m, the palm face's height above the block's top
-    depth: float = 0.0  #: m below the top, where the pre-shape put the fingertips
+    gap: float  #: m, the palm face's height above the block's top
+    depth: float  #: m below the top, where the pre-shape put the fingertips
 
 
 @dataclass(frozen=True, eq=False)

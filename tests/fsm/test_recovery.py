@@ -106,7 +106,8 @@ def test_a_finger_fine_reach_leaves_far_off_gives_up_with_its_reason(tmp_path: P
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
     assert not result.success and result.failure == "fingers cannot reach", log
     gave_up = re.match(r"(\w\w) stayed (\d+) mm from its surface point", result.failure_detail)
-    assert gave_up is not None and int(gave_up.group(2)) > 30, result.failure_detail
+    give_up_mm = DEFAULT_CONFIG.fine_reach_give_up * 1000.0
+    assert gave_up is not None and int(gave_up.group(2)) > give_up_mm, result.failure_detail
     assert result.visits[-1].state == State.FINE_REACH.value, log
     assert "no other palm pose to regrasp from" in result.failure_detail
 
