@@ -69,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
             depth=args.depth,
             hand=args.hand,
             height_tries=args.height_tries,
+            regrasp=args.regrasp,
         )
         summary = write_report(
             args.out,
@@ -80,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
             time.perf_counter() - t0,
             models=models,
             hand=args.hand,
+            height_tries=args.height_tries,
         )
     print(
         f"{total} grasps, {summary['tested']} tested physically, {summary['held']} held; "
@@ -143,6 +145,13 @@ def build_parser() -> cli.ArgumentParser:
         help="the hand on the arm: servo (models/hand.xml, position servos) or tendon (the "
         "Utah/MIT hand's tendon drive, models/utah_mit_hand/; its guards read contact forces "
         "estimated from the tendon tensions) (default %(default)s)",
+    )
+    ph.add_argument(
+        "--regrasp",
+        action="store_true",
+        help="a grasp the hand cannot take is synthesized once more by the same controller "
+        "from where the hand's best seed posture touches the block (the task cycle's return "
+        "to Posture Control); counted apart in the report",
     )
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)

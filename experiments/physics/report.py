@@ -17,6 +17,7 @@ from controllers.grasp.objects import PAPER_OBJECTS
 from controllers.grasp.task_height import HEIGHT_TRIES
 from experiments.physics.compare import measures_figure, measures_section
 from experiments.physics.heights import height_section
+from experiments.physics.regrasp import regrasp_section
 from experiments.physics.roc import Roc, rates_at, roc
 from experiments.physics.study import (
     DIRECTIONS,
@@ -51,9 +52,11 @@ def jobs_for(
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
+    regrasp: bool = False,
 ) -> list[Job]:
     """The study's chunks: per model, object and controller (the same starts for every model),
-    with the ``hand`` on the arm and, in 3-D, up to ``height_tries`` common heights tried."""
+    with the ``hand`` on the arm and, in 3-D, up to ``height_tries`` common heights tried;
+    ``regrasp``: an unreachable grasp is synthesized once more (``--regrasp``)."""
     out = []
     for model in models:
         for obj in objects:
@@ -62,7 +65,19 @@ def jobs_for(
                 for start in range(0, grasps, CHUNK):
                     idx = tuple(range(start, min(grasps, start + CHUNK)))
                     out.append(
-                        Job(obj, o_index, ctrl, ci, idx, seed, model, depth, hand, height_tries)
+                        Job(
+                            obj,
+                            o_index,
+                            ctrl,
+                            ci,
+                            idx,
+                            seed,
+                            model,
+                            depth,
+                            hand,
+                            height_tries,
+                            regrasp,
+                        )
                     )
     return out
 
@@ -77,10 +92,11 @@ def run_study(
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
+    regrasp: bool = False,
 ) -> list[dict]:
     """Every grasp, in a fixed order (model, object, controller, index) whatever the workers,
     taken by the ``hand`` ("servo" or "tendon"); ``height_tries`` as in :func:`jobs_for`."""
-    jobs = jobs_for(objects, grasps, seed, models, depth, hand, height_tries)
+    jobs = jobs_for(objects, grasps, seed, models, depth, hand, height_tries, regrasp)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:
@@ -174,8 +190,15 @@ def sg_histogram(results: list[dict], path: Path) -> None:
     os.replace(tmp, path)
 
 
-def render_grasp(entry: dict, seed: int, path: Path, hand: str = DEFAULT_HAND) -> bool:
-    """Re-run one grasp (deterministic, with the ``hand`` that took it) and save a picture: the
+def render_grasp(
+    entry: dict,
+    seed: int,
+    path: Path,
+    hand: str = DEFAULT_HAND,
+    height_tries: int = HEIGHT_TRIES,
+) -> bool:
+    """Re-run one grasp (deterministic, with the ``hand`` and ``height_tries`` of its run) and
+    save a picture: the
     grasp after the squeeze beside the moment the test lost it. False when the re-run does not
     reproduce the drop."""
     import mujoco
@@ -191,6 +214,9 @@ def render_grasp(entry: dict, seed: int, path: Path, hand: str = DEFAULT_HAND) -
         entry.get("model", "planar"),
         entry.get("depth"),
         hand,
+        height_tries,
+        # a regrasped grasp came from a run with --regrasp; any other was taken first time
+        bool(entry.get("regrasped")),
     )
     renderer: list = []
 
@@ -249,9 +275,11 @@ def write_report(
     pictures: int = PICTURES,
     models: Sequence[str] = ("planar",),
     hand: str = DEFAULT_HAND,
+    height_tries: int = HEIGHT_TRIES,
 ) -> dict:
     """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures; the
-    summary and the report name the ``hand`` that took the grasps."""
+    summary and the report name the ``hand`` that took the grasps (``height_tries``: the run's,
+    for re-running the pictured grasps)."""
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "results.jsonl", "".join(json.dumps(r) + "\n" for r in results))
     tested = [r for r in results if r["result"] in ("held", "dropped")]
@@ -273,7 +301,7 @@ def write_report(
         for r in [r for r in false_pos if r.get("model", "planar") == m][:pictures]:
             prefix = "" if m == "planar" else f"{m}_"
             name = f"dropped_{prefix}{r['object']}_{r['controller']}_{r['index']}.png"
-            if render_grasp(r, seed, out / name, hand):
+            if render_grasp(r, seed, out / name, hand, height_tries):
                 drawn.append((name, r))
     summary = {
         "command": command,
@@ -316,6 +344,7 @@ def write_report(
         ),
         "",
         *height_section(results),
+        *regrasp_section(results),
         *compare_md,
         "",
         "## S_G of the synthesized contacts as a predictor (tested grasps, all models)",

@@ -44,9 +44,10 @@ from controllers.timing import CONTROL_PERIOD, control_steps
 from controllers.transport import LIFT_HEIGHT, lift
 from experiments.physics.compliance import grasp_compliance
 from experiments.physics.force_demand import held_force_demand
-from experiments.physics.hand_placement import HandPosture, place_hand, top_postures
+from experiments.physics.hand_placement import HandPosture, Placement, place_hand, top_postures
 from experiments.physics.measures import grasp_measures, held_contacts
-from experiments.physics.synthesis import grasp_depths, synthesize
+from experiments.physics.regrasp import regrasp_start
+from experiments.physics.synthesis import Synthesis, grasp_depths, synthesize
 from hand_sim import robot
 from hand_sim.errors import SimulationError
 from hand_sim.indices import RobotIndices
@@ -105,8 +106,20 @@ class GraspOutcome:
     palm_yaw: float | None = None  #: of the palm's x axis about the vertical
     palm_tilt: float | None = None  #: of the palm's approach axis from vertical
     squeeze_settled: bool = False
+    #: N per finger after the squeeze, as the hand senses them (World.touch: the servo hand's pads,
+    #: the tendon hand's estimate from its tensions)
     grip_force: list[float] = field(default_factory=list)
+    #: N per finger after the squeeze, the pads' true normal forces (World.touch_sensors; the same
+    #: as grip_force on the servo hand, the ground truth of the estimate on the tendon hand)
+    pad_force: list[float] = field(default_factory=list)
     failed_stage: str = ""
+    #: --regrasp: the first grasp was unreachable and this one was synthesized from contacts the
+    #: hand holds (:mod:`experiments.physics.regrasp`); the first grasp's contacts, why the hand
+    #: could not take it, and the second synthesis's initial contacts
+    regrasped: bool = False
+    first_theta: list[float] = field(default_factory=list)
+    first_reason: str = ""
+    regrasp_initial: list[float] = field(default_factory=list)
     #: per stage reached: the largest shift and turn of the block in the palm's frame
     shift: dict[str, float] = field(default_factory=dict)
     turn: dict[str, float] = field(default_factory=dict)
@@ -285,6 +298,39 @@ def _ok(out: GraspOutcome, stage: str) -> bool:
     return out.shift[stage] <= MAX_SHIFT and out.turn[stage] <= MAX_TURN
 
 
+def _place(
+    sw: StudyWorld, syn: Synthesis, out: GraspOutcome, depth: float | None
+) -> tuple[Placement, np.ndarray | None]:
+    """Step 2 for the synthesized contacts ``syn`` (fills ``out``'s contacts and height rank):
+    the placement found, and the world heights of the contacts at the first height offered
+    (None for a planar grasp at its fingertips' heights)."""
+    top_z = sw.target.top_z
+    half = 0.5 * sw.world.scene.block(sw.name).height
+    out.theta = [round(float(t), 6) for t in syn.theta]
+    out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
+    heights = None if depth is None else np.full(len(syn.theta), top_z - depth)
+    options = [heights] if syn.heights is None else list(syn.height_options or (syn.heights,))
+    first = None if syn.heights is None else top_z - half + options[0]
+    for rank, option in enumerate(options):
+        if syn.heights is not None:
+            out.heights = [round(float(z), 6) for z in option]
+            heights = top_z - half + option
+            out.height_raise = round(float(np.mean(option - options[0])), 6)
+        out.height_rank = rank
+        placed = place_hand(
+            sw.world,
+            sw.prism,
+            sw.target,
+            syn.theta,
+            sw.postures,
+            checker=sw.checker,
+            heights=heights,
+        )
+        if placed.reachable:
+            break
+    return placed, first if first is not None else heights
+
+
 def test_grasp(
     sw: StudyWorld,
     composer,
@@ -293,42 +339,44 @@ def test_grasp(
     snapshot: Snapshot | None = None,
     depth: float | None = None,
     height_tries: int = HEIGHT_TRIES,
+    regrasp: bool = False,
 ) -> GraspOutcome:
     """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``.
     ``depth`` (planar model): every contact that far (m) below the top. 3-D model: the hand
     tries up to ``height_tries`` common heights of the contacts, best first, and takes the first
-    it reaches (:attr:`GraspOutcome.height_rank`)."""
+    it reaches (:attr:`GraspOutcome.height_rank`). ``regrasp``: a grasp the hand cannot take is
+    synthesized once more from contacts the hand holds (:mod:`experiments.physics.regrasp`)."""
     world = sw.world
     world.reset()
     spec = world.scene.block(sw.name)
     weight = world.block_weight(sw.name)
     load = weight / GRIP_FORCE
-    syn = synthesize(
-        out.model,
-        sw.target.polygon,
-        spec.height,
-        composer,
-        out.theta_initial,
-        rng,
-        load=load,
-        yaw=-sw.target.yaw,
-        height_tries=height_tries,
-    )
-    out.theta = [round(float(t), 6) for t in syn.theta]
-    out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
-    heights = None if depth is None else np.full(len(syn.theta), sw.target.top_z - depth)
-    options = [heights] if syn.heights is None else list(syn.height_options or (syn.heights,))
-    for rank, option in enumerate(options):
-        if syn.heights is not None:
-            out.heights = [round(float(z), 6) for z in option]
-            heights = sw.target.top_z - 0.5 * spec.height + option
-            out.height_raise = round(float(np.mean(option - options[0])), 6)
-        out.height_rank = rank
-        placed = place_hand(
-            world, sw.prism, sw.target, syn.theta, sw.postures, checker=sw.checker, heights=heights
+
+    def run(theta0: list[float], heights0: np.ndarray | None = None) -> Synthesis:
+        return synthesize(
+            out.model,
+            sw.target.polygon,
+            spec.height,
+            composer,
+            theta0,
+            rng,
+            load=load,
+            yaw=-sw.target.yaw,
+            height_tries=height_tries,
+            heights_initial=heights0,
         )
-        if placed.reachable:
-            break
+
+    syn = run(out.theta_initial)
+    placed, first_heights = _place(sw, syn, out, depth)
+    if not placed.reachable and regrasp:
+        out.regrasped, out.first_theta, out.first_reason = True, out.theta, placed.reason
+        theta0, z0 = regrasp_start(
+            sw.target, sw.postures, syn.theta, sw.prism.bottom, first_heights
+        )
+        out.regrasp_initial = [round(float(t), 6) for t in theta0]
+        # world z -> m above the block's centre of mass
+        syn = run(list(theta0), z0 - (sw.target.top_z - 0.5 * spec.height))
+        placed, _ = _place(sw, syn, out, depth)
     if not placed.reachable:
         out.result, out.reason = "unreachable", placed.reason
         return out
@@ -360,6 +408,7 @@ def test_grasp(
         sq = squeeze(world, grip)
         out.squeeze_settled = bool(sq.settled)
         out.grip_force = [round(float(f), 3) for f in sq.touch]
+        out.pad_force = [round(float(f), 3) for f in world.touch_sensors()]
         points = held_contacts(world, sw.name)
         if points is not None:
             out.measures = grasp_measures(points, sw.target.polygon, sw.target.yaw, load).to_json()
@@ -402,6 +451,8 @@ class Job:
     hand: str = DEFAULT_HAND
     #: 3-D model: common heights tried in turn (--height-tries; 1: only the task's best)
     height_tries: int = HEIGHT_TRIES
+    #: an unreachable grasp is synthesized once more from contacts the hand holds (--regrasp)
+    regrasp: bool = False
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -419,6 +470,15 @@ def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
         o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model, depth=job.depth)
-        test_grasp(sw, composer, rng, o, snapshot, depth=job.depth, height_tries=job.height_tries)
+        test_grasp(
+            sw,
+            composer,
+            rng,
+            o,
+            snapshot,
+            depth=job.depth,
+            height_tries=job.height_tries,
+            regrasp=job.regrasp,
+        )
         out.append(o.to_json())
     return out

@@ -68,12 +68,15 @@ def synthesize(
     load: float,
     yaw: float,
     height_tries: int = HEIGHT_TRIES,
+    heights_initial: NDArray[np.float64] | None = None,
 ) -> Synthesis:
     """Run the ``model``'s controller (module docstring) from ``theta_initial``. In 3-D the
     contacts' common height is then set by the physical test's tasks
     (the first of :func:`controllers.grasp.task_height.ranked_shifts`, ``load`` = m*g over the
     grip force per finger, ``yaw`` = the world x axis's angle in the block's frame) and up to
-    ``height_tries`` common heights are offered, best first."""
+    ``height_tries`` common heights are offered, best first. ``heights_initial`` (3-D; m above
+    the centre of mass, kept in the band): the contacts' initial heights (default: uniform in the
+    band, drawn from ``rng``)."""
     if model == "planar":
         syn = GraspSynthesis(
             polygon,
@@ -89,14 +92,19 @@ def synthesize(
         s_g = float(score.s_g) if score.feasible else None
         return Synthesis(syn.theta, None, s_g, syn.steps, bool(syn.converged))
     band = top_grasp_band(height)
-    rng_heights = rng.uniform(0.0, 1.0, size=len(theta_initial))
+    low, high = band.low - 0.5 * height, band.high - 0.5 * height
+    if heights_initial is None:
+        u = rng.uniform(0.0, 1.0, size=len(theta_initial))
+        initial = band.low - 0.5 * height + u * (band.high - band.low)
+    else:
+        initial = np.clip(np.asarray(heights_initial, dtype=float), low, high)
     syn3 = GraspSynthesis3D(
         polygon,
         height,
         band,
         composer,
         theta_initial,
-        band.low - 0.5 * height + rng_heights * (band.high - band.low),
+        initial,
         rng,
         min_separation=CONTACT_SEPARATION,
         separation_offset=robot.PAD_RADIUS,
