@@ -27,7 +27,7 @@ One grasp, start to end (:func:`test_grasp`):
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -46,6 +46,7 @@ from experiments.physics.compliance import grasp_compliance
 from experiments.physics.force_demand import held_force_demand
 from experiments.physics.hand_placement import HandPosture, Placement, place_hand, top_postures
 from experiments.physics.measures import grasp_measures, held_contacts
+from experiments.physics.outcome import GraspOutcome
 from experiments.physics.regrasp import regrasp_start
 from experiments.physics.synthesis import Synthesis, grasp_depths, synthesize
 from hand_sim import robot
@@ -76,62 +77,6 @@ MAX_TURN = np.deg2rad(10.0)
 PAPER_THRESHOLD = 0.4
 #: Stages of the physical test, in order.
 STAGES: tuple[str, ...] = ("hang", *(d for d, _ in DIRECTIONS), "lift")
-
-
-@dataclass
-class GraspOutcome:
-    """One grasp of the study. Lengths in m, angles in rad, forces in N."""
-
-    object: str
-    controller: str
-    index: int
-    theta_initial: list[float]
-    model: str = "planar"  #: the grasp model the controller ran on ("planar" or "3d")
-    depth: float | None = None  #: planar: every contact this far (m) below the top (--depth)
-    theta: list[float] = field(default_factory=list)  #: final contact coordinates
-    #: 3-D model: the controller's contact heights above the block's centre of mass (m)
-    heights: list[float] = field(default_factory=list)
-    #: 3-D model: which of the common heights offered the hand took (0: the task's best; the
-    #: last tried when none was reachable)
-    height_rank: int = 0
-    #: 3-D model: how far (m) the hand's common height is above the task's best (0 at rank 0)
-    height_raise: float | None = None
-    steps: int = 0
-    converged: bool = False
-    s_g: float | None = None  #: None: the S_G LP is infeasible
-    #: "held", "dropped", "unreachable" (no posture reaches the contacts), "not closed" (a finger
-    #: never touched), "sim error" (MuJoCo went unstable)
-    result: str = ""
-    reason: str = ""
-    palm_yaw: float | None = None  #: of the palm's x axis about the vertical
-    palm_tilt: float | None = None  #: of the palm's approach axis from vertical
-    squeeze_settled: bool = False
-    #: N per finger after the squeeze, as the hand senses them (World.touch: the servo hand's pads,
-    #: the tendon hand's estimate from its tensions)
-    grip_force: list[float] = field(default_factory=list)
-    #: N per finger after the squeeze, the pads' true normal forces (World.touch_sensors; the same
-    #: as grip_force on the servo hand, the ground truth of the estimate on the tendon hand)
-    pad_force: list[float] = field(default_factory=list)
-    failed_stage: str = ""
-    #: --regrasp: the first grasp was unreachable and this one was synthesized from contacts the
-    #: hand holds (:mod:`experiments.physics.regrasp`); the first grasp's contacts, why the hand
-    #: could not take it, and the second synthesis's initial contacts
-    regrasped: bool = False
-    first_theta: list[float] = field(default_factory=list)
-    first_reason: str = ""
-    regrasp_initial: list[float] = field(default_factory=list)
-    #: per stage reached: the largest shift and turn of the block in the palm's frame
-    shift: dict[str, float] = field(default_factory=dict)
-    turn: dict[str, float] = field(default_factory=dict)
-    #: the grasp as held at the end of the squeeze, scored (experiments.physics.measures)
-    measures: dict = field(default_factory=dict)
-
-    @property
-    def tested(self) -> bool:
-        return self.result in ("held", "dropped")
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def grasp_seed(seed: int, obj: int, controller: int, index: int) -> np.random.Generator:
@@ -298,6 +243,34 @@ def _ok(out: GraspOutcome, stage: str) -> bool:
     return out.shift[stage] <= MAX_SHIFT and out.turn[stage] <= MAX_TURN
 
 
+def synthesize_on(
+    sw: StudyWorld,
+    model: str,
+    composer,
+    theta0: list[float],
+    rng: np.random.Generator,
+    *,
+    height_tries: int = HEIGHT_TRIES,
+    heights0: np.ndarray | None = None,
+) -> Synthesis:
+    """Step 1 on ``sw``'s block (:func:`experiments.physics.synthesis.synthesize`): the
+    ``model``'s controller from contacts ``theta0`` (and, in 3-D, initial heights ``heights0``,
+    m above the centre of mass), its task the physical test's (the block's weight over the grip
+    force, the world x axis in the block's frame)."""
+    return synthesize(
+        model,
+        sw.target.polygon,
+        sw.world.scene.block(sw.name).height,
+        composer,
+        theta0,
+        rng,
+        load=sw.world.block_weight(sw.name) / GRIP_FORCE,
+        yaw=-sw.target.yaw,
+        height_tries=height_tries,
+        heights_initial=heights0,
+    )
+
+
 def _place(
     sw: StudyWorld, syn: Synthesis, out: GraspOutcome, depth: float | None
 ) -> tuple[Placement, np.ndarray | None]:
@@ -353,17 +326,8 @@ def test_grasp(
     load = weight / GRIP_FORCE
 
     def run(theta0: list[float], heights0: np.ndarray | None = None) -> Synthesis:
-        return synthesize(
-            out.model,
-            sw.target.polygon,
-            spec.height,
-            composer,
-            theta0,
-            rng,
-            load=load,
-            yaw=-sw.target.yaw,
-            height_tries=height_tries,
-            heights_initial=heights0,
+        return synthesize_on(
+            sw, out.model, composer, theta0, rng, height_tries=height_tries, heights0=heights0
         )
 
     syn = run(out.theta_initial)

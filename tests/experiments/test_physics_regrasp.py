@@ -10,7 +10,6 @@ import pytest
 
 from controllers.grasp.objects import PAPER_OBJECTS
 from controllers.grasp.registry import make_composer
-from controllers.grip import GRIP_FORCE
 from experiments.physics.hand_placement import place_hand
 from experiments.physics.regrasp import regrasp_section, regrasp_start
 from experiments.physics.study import (
@@ -20,8 +19,9 @@ from experiments.physics.study import (
     StudyWorld,
     initial_contacts,
     run_job,
+    synthesize_on,
 )
-from experiments.physics.synthesis import synthesize, top_grasp_band
+from experiments.physics.synthesis import top_grasp_band
 
 OBJ = "hexagon"
 #: Seed 0, hexagon, KB grasp 0 (3-D): its contacts ask ff to press with the side of its
@@ -36,17 +36,7 @@ def hexagon() -> StudyWorld:
 
 def _first_synthesis(sw: StudyWorld):
     theta0, rng = initial_contacts(JOB, 0)
-    spec = sw.world.scene.block(sw.name)
-    return synthesize(
-        "3d",
-        sw.target.polygon,
-        spec.height,
-        make_composer("kb"),
-        theta0,
-        rng,
-        load=sw.world.block_weight(sw.name) / GRIP_FORCE,
-        yaw=-sw.target.yaw,
-    )
+    return synthesize_on(sw, "3d", make_composer("kb"), theta0, rng)
 
 
 def test_the_regrasp_starts_from_contacts_on_the_faces_that_the_hand_reaches(hexagon) -> None:

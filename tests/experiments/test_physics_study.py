@@ -239,25 +239,14 @@ def test_a_square_grasp_the_best_ranked_starts_miss_is_placed_from_another_kind_
     of starts does, from a kind the ranking left out, fingertips on the contacts."""
     from controllers.grasp.objects import PAPER_OBJECTS
     from controllers.grasp.registry import make_composer
-    from controllers.grip import GRIP_FORCE
-    from experiments.physics.study import initial_contacts
-    from experiments.physics.synthesis import synthesize
+    from experiments.physics.study import initial_contacts, synthesize_on
 
     obj = "square"
     job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (0,), 0, "3d")
     sw = StudyWorld.of(obj, "3d")
     theta0, rng = initial_contacts(job, 0)
     spec = sw.world.scene.block(sw.name)
-    syn = synthesize(
-        "3d",
-        sw.target.polygon,
-        spec.height,
-        make_composer("kb"),
-        theta0,
-        rng,
-        load=sw.world.block_weight(sw.name) / GRIP_FORCE,
-        yaw=-sw.target.yaw,
-    )
+    syn = synthesize_on(sw, "3d", make_composer("kb"), theta0, rng)
     heights = sw.target.top_z - 0.5 * spec.height + syn.heights
     ranked = ranked_starts(sw.target, syn.theta, sw.postures, sw.prism.bottom, heights)
     first = ranked[:SEEDS_TRIED]
