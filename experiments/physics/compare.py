@@ -38,6 +38,17 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return float(c - h), float(c + h)
 
 
+def held_share(results: list[dict]) -> str:
+    """ "held / tested (lo-hi %)" of ``results``' tested grasps, with the Wilson 95 % interval
+    ("0 / 0" when none was tested)."""
+    tested = [r for r in results if r["result"] in ("held", "dropped")]
+    if not tested:
+        return "0 / 0"
+    held = sum(r["result"] == "held" for r in tested)
+    lo, hi = wilson(held, len(tested))
+    return f"{held} / {len(tested)} ({100 * lo:.0f}-{100 * hi:.0f} %)"
+
+
 def _scored(results: list[dict]) -> list[dict]:
     return [r for r in results if r["result"] in ("held", "dropped") and r.get("measures")]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from experiments.physics.compare import wilson
+from experiments.physics.compare import held_share
 
 
 def height_section(results: list[dict]) -> list[str]:
@@ -30,14 +30,11 @@ def height_section(results: list[dict]) -> list[str]:
     for k in sorted({int(r.get("height_rank", 0)) for r in placed}):
         at = [r for r in placed if int(r.get("height_rank", 0)) == k]
         tested = [r for r in at if r["result"] in ("held", "dropped")]
-        held = sum(r["result"] == "held" for r in tested)
-        lo, hi = wilson(held, len(tested))
         raise_mm = [
             1000.0 * float(r["height_raise"]) for r in at if r.get("height_raise") is not None
         ]
         median = f"{np.median(raise_mm):.1f}" if raise_mm else "-"
-        share = f"{held} / {len(tested)} ({100 * lo:.0f}-{100 * hi:.0f} %)" if tested else "0 / 0"
-        lines.append(f"| {k} | {len(at)} | {len(tested)} | {share} | {median} |")
+        lines.append(f"| {k} | {len(at)} | {len(tested)} | {held_share(at)} | {median} |")
     unreachable = len(rs) - len(placed)
     lines += ["", f"Reached at no height: {unreachable} of {len(rs)} 3-D grasps.", ""]
     return lines

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from controllers.fine_reach import project_to_surface
 from controllers.reach import ReachTarget
-from experiments.physics.compare import wilson
+from experiments.physics.compare import held_share
 from experiments.physics.hand_placement import HandPosture, ranked_starts
 
 
@@ -60,14 +60,6 @@ def regrasp_section(results: list[dict]) -> list[str]:
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
 
-    def held_of(rs: list[dict]) -> str:
-        tested = [r for r in rs if r["result"] in ("held", "dropped")]
-        held = sum(r["result"] == "held" for r in tested)
-        if not tested:
-            return "0 / 0"
-        lo, hi = wilson(held, len(tested))
-        return f"{held} / {len(tested)} ({100 * lo:.0f}-{100 * hi:.0f} %)"
-
     for m in sorted({r.get("model", "planar") for r in results}):
         rs = [r for r in results if r.get("model", "planar") == m]
         first = [r for r in rs if not r.get("regrasped")]
@@ -75,7 +67,7 @@ def regrasp_section(results: list[dict]) -> list[str]:
         reached = [r for r in again if r["result"] != "unreachable"]
         lines.append(
             f"| {m} | {len(rs)} | {sum(r['result'] != 'unreachable' for r in first)} "
-            f"| {held_of(first)} | {len(again)} | {len(reached)} | {held_of(again)} "
+            f"| {held_share(first)} | {len(again)} | {len(reached)} | {held_share(again)} "
             f"| {len(again) - len(reached)} |"
         )
     return [*lines, ""]

@@ -72,11 +72,11 @@ def jobs_for(
                             ci,
                             idx,
                             seed,
-                            model,
-                            depth,
-                            hand,
-                            height_tries,
-                            regrasp,
+                            model=model,
+                            depth=depth,
+                            hand=hand,
+                            height_tries=height_tries,
+                            regrasp=regrasp,
                         )
                     )
     return out
@@ -198,9 +198,8 @@ def render_grasp(
     height_tries: int = HEIGHT_TRIES,
 ) -> bool:
     """Re-run one grasp (deterministic, with the ``hand`` and ``height_tries`` of its run) and
-    save a picture: the
-    grasp after the squeeze beside the moment the test lost it. False when the re-run does not
-    reproduce the drop."""
+    save a picture: the grasp after the squeeze beside the moment the test lost it. False when
+    the re-run does not reproduce the drop."""
     import mujoco
 
     frames: dict[str, np.ndarray] = {}
@@ -213,10 +212,10 @@ def render_grasp(
         seed,
         entry.get("model", "planar"),
         entry.get("depth"),
-        hand,
-        height_tries,
+        hand=hand,
+        height_tries=height_tries,
         # a regrasped grasp came from a run with --regrasp; any other was taken first time
-        bool(entry.get("regrasped")),
+        regrasp=bool(entry.get("regrasped")),
     )
     renderer: list = []
 

@@ -281,14 +281,14 @@ def _place(
     half = 0.5 * sw.world.scene.block(sw.name).height
     out.theta = [round(float(t), 6) for t in syn.theta]
     out.steps, out.converged, out.s_g = syn.steps, syn.converged, syn.s_g
-    heights = None if depth is None else np.full(len(syn.theta), top_z - depth)
-    options = [heights] if syn.heights is None else list(syn.height_options or (syn.heights,))
-    first = None if syn.heights is None else top_z - half + options[0]
-    for rank, option in enumerate(options):
+    planar = None if depth is None else np.full(len(syn.theta), top_z - depth)
+    # the contacts' world heights at each common height offered (one option for a planar grasp)
+    options = [syn.heights] if not syn.height_options else list(syn.height_options)
+    worlds = [planar] if syn.heights is None else [top_z - half + o for o in options]
+    for rank, heights in enumerate(worlds):
         if syn.heights is not None:
-            out.heights = [round(float(z), 6) for z in option]
-            heights = top_z - half + option
-            out.height_raise = round(float(np.mean(option - options[0])), 6)
+            out.heights = [round(float(z), 6) for z in options[rank]]
+            out.height_raise = round(float(np.mean(options[rank] - options[0])), 6)
         out.height_rank = rank
         placed = place_hand(
             sw.world,
@@ -301,7 +301,7 @@ def _place(
         )
         if placed.reachable:
             break
-    return placed, first if first is not None else heights
+    return placed, worlds[0]
 
 
 def test_grasp(
