@@ -90,6 +90,9 @@ class Grip:
     in_error: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))  #: IK, m
     progress: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
     touched: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(4, dtype=bool))
+    #: (4, 3) the contacts' outward face normals, world axes: the squeeze regulates the force
+    #: into each face (:meth:`hand_sim.world.World.touch`); None: as the hand senses it
+    normals: NDArray[np.float64] | None = None
 
     def targets(self) -> NDArray[np.float64]:
         """(16,) hand servo targets for the current progress."""
@@ -196,7 +199,11 @@ def plan_grip(
         standoff[tight] = np.minimum(standoff[tight] + PRE_CONTACT_STEP, MAX_PRE_CONTACT)
     if along_normal:
         return Grip(
-            pre_q, sol_in.hand_q, grip_force * shares / shares.mean(), in_error=sol_in.tip_error
+            pre_q,
+            sol_in.hand_q,
+            grip_force * shares / shares.mean(),
+            in_error=sol_in.tip_error,
+            normals=n.copy(),
         )
     return Grip(
         sol_pre.hand_q,
@@ -204,6 +211,7 @@ def plan_grip(
         grip_force * shares / shares.mean(),
         pre_error=sol_pre.tip_error,
         in_error=sol_in.tip_error,
+        normals=n.copy(),
     )
 
 
@@ -345,25 +353,29 @@ class SqueezeResult:
 
 
 def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> SqueezeResult:
-    """Regulate every finger's force to its own target (its share of the grip) until all are
-    within FORCE_TOLERANCE (or FORCE_FLOOR) of it; the fingers' servo targets then stay where
-    the squeeze left them (the grip holds as a stiffness while the arm lifts and carries)."""
+    """Regulate every finger's force into its face (the grip's normals; the tendon hand's
+    estimate would otherwise count a pad dragging along the face as pressing) to its own target
+    (its share of the grip) until all are within FORCE_TOLERANCE (or FORCE_FLOOR) of it; the
+    fingers' servo targets then stay where the squeeze left them (the grip holds as a stiffness
+    while the arm lifts and carries)."""
     steps = control_steps(world)
     t0 = world.time
     settled_for = 0
     while world.time - t0 < max_time:
-        error = grip.forces - world.touch()
+        error = grip.forces - world.touch(grip.normals)
         grip.progress = np.clip(
             grip.progress + FORCE_GAIN * error * CONTROL_PERIOD, 0.0, MAX_PROGRESS
         )
         world.set_hand_targets(grip.targets())
         world.step(steps)
         slack = np.maximum(FORCE_TOLERANCE * grip.forces, FORCE_FLOOR)
-        ok = np.all(np.abs(world.touch() - grip.forces) <= slack)
+        ok = np.all(np.abs(world.touch(grip.normals) - grip.forces) <= slack)
         settled_for = settled_for + 1 if ok else 0
         if settled_for >= 5:
             break
-    return SqueezeResult(settled_for >= 5, world.touch(), grip.forces.copy(), world.time - t0)
+    return SqueezeResult(
+        settled_for >= 5, world.touch(grip.normals), grip.forces.copy(), world.time - t0
+    )
 
 
 def release(world: World, grip: Grip, *, duration: float = RELEASE_TIME) -> NDArray[np.float64]:

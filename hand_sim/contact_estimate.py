@@ -24,7 +24,12 @@ the state the sensors sampled:
    along f (pad centre + pad radius * f/|f|), and f is solved again there (one refinement: the
    contact moves over the pad and the lever arms with it). A joint within :data:`LIMIT_MARGIN`
    of a range limit is left out: its mechanical stop's torque is not sensed.
-4. The normal force reported is |f| (f is along the pad's normal at that point).
+4. The normal force reported is |f| (f is along the pad's normal at that point). Given the
+   contacts' outward face normals n (``normals``: the grasp's own, from the perceived block),
+   the contact point is instead the point of the pad facing the face (pad centre - pad radius *
+   n), and the normal force reported is f's component into the face, max(0, -f . n): a finger
+   that presses and drags along the face (a squeeze that curls the fingers pushes the pads down
+   the faces) has a tangential force that |f| counts as pressing.
 
 A joint that is not sliding holds its friction at any value in [-F, F] (stiction), and the
 memory's sign can be wrong (an overshoot, a load that reversed): the estimate cannot see it. It
@@ -90,7 +95,8 @@ class FrictionMemory:
 class ContactEstimate:
     """Estimated contact force at each fingertip, order ff, mf, rf, th."""
 
-    normal: NDArray[np.float64]  #: (4,) N, the pad's normal force (|f|)
+    #: (4,) N, the pad's normal force: |f|, or f's component into the face given its normal
+    normal: NDArray[np.float64]
     force: NDArray[np.float64]  #: (4, 3) N, force the finger exerts, world axes
     external_torque: NDArray[np.float64]  #: (16,) N m, tau_ext per joint
     point: NDArray[np.float64]  #: (4, 3) m, the contact point the force was solved at
@@ -172,11 +178,13 @@ class ContactEstimator:
         sliding: NDArray[np.float64] | None = None,
         *,
         least: bool = False,
+        normals: NDArray[np.float64] | None = None,
     ) -> ContactEstimate:
         """The estimated pad forces in ``data``'s present state (kinematics and sensors must be
         current, as after ``mj_step`` or ``mj_forward``); ``sliding`` as in
         :meth:`external_torque`; ``least``: also the least force the torques allow (module
-        docstring)."""
+        docstring); ``normals`` (4, 3): the contacts' outward face normals, world axes, to
+        report each force's component into its face (step 4)."""
         qdot = data.qvel[self.layout.dof_adr]
         if sliding is None:
             sliding = np.where(np.abs(qdot) > MOVING_SPEED, np.sign(qdot), 0.0)
@@ -197,16 +205,17 @@ class ContactEstimator:
             body = int(model.site_bodyid[self.tip_sites[f]])
             tip = data.site_xpos[self.tip_sites[f]]
             centre = data.site_xpos[self.pad_centres[f]]
-            p = tip.copy()
+            face = None if normals is None else np.asarray(normals[f], dtype=float)
+            p = tip.copy() if face is None else centre - self.pad_radius * face
             fv = np.zeros(3)
             solver = np.zeros((3, int(keep.sum())))
-            for _ in range(2):
+            for _ in range(1 if face is not None else 2):
                 mujoco.mj_jac(model, data, jac, None, p, body)
                 A = jac[:, self.finger_dofs[f]].T[keep]
                 solver = np.linalg.solve(A.T @ A + RIDGE**2 * np.eye(3), A.T)
                 fv = solver @ tau_ext[rows][keep]
                 size = float(np.linalg.norm(fv))
-                if size < 1e-9:
+                if size < 1e-9 or face is not None:
                     break
                 p = centre + self.pad_radius * fv / size
             force[f], point[f] = fv, p
@@ -215,9 +224,16 @@ class ContactEstimator:
             if lows is not None:
                 # the stuck joints' torques without the memory's friction, +- F about that
                 centre = tau_ext[rows][keep] + band * sliding[rows][keep]
-                lows[f] = least_force(solver, centre, band)
+                lows[f] = (
+                    least_force(solver, centre, band)
+                    if face is None
+                    else least_pressing(-face @ solver, centre, band)
+                )
+        pressing = np.linalg.norm(force, axis=1)
+        if normals is not None:
+            pressing = np.maximum(0.0, -np.einsum("ij,ij->i", force, normals))
         return ContactEstimate(
-            normal=np.linalg.norm(force, axis=1),
+            normal=pressing,
             force=force,
             external_torque=tau_ext,
             point=point,
@@ -241,3 +257,13 @@ def least_force(
     lo, hi = centre[free] - band[free], centre[free] + band[free]
     found = lsq_linear(solver[:, free], -fixed, bounds=(lo, hi), method="bvls")
     return float(np.linalg.norm(solver[:, free] @ found.x + fixed))
+
+
+def least_pressing(
+    into: NDArray[np.float64], centre: NDArray[np.float64], band: NDArray[np.float64]
+) -> float:
+    """min over the torques tau with |tau_j - centre_j| <= band_j of ``into`` . tau, floored at
+    0: the least force into a face (N) that the fit's row ``into`` (k,) (the face's inward normal
+    times the fit) gives for joint torques known only within a band. Linear, so each joint sits
+    at the end of its band that lowers it: into . centre - |into| . band."""
+    return max(0.0, float(into @ centre - np.abs(into) @ band))

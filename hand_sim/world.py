@@ -380,13 +380,16 @@ class World:
         ).least
         return np.asarray(least) > max(threshold, DETECTION_THRESHOLD)
 
-    def touch(self) -> NDArray[np.float64]:
+    def touch(self, normals: ArrayLike | None = None) -> NDArray[np.float64]:
         """(4,) fingertip normal forces (N), order ff, mf, rf, th, as the hand senses them: the
         servo hand's touch pads (:meth:`touch_sensors`); the tendon hand, which like the real
         Utah/MIT hand has no fingertip sensors, the estimate from its tendon tensions and joint
-        angles (:meth:`contact_estimate`). :attr:`touch_source` says which."""
+        angles (:meth:`contact_estimate`). :attr:`touch_source` says which. ``normals`` (4, 3):
+        the contacts' outward face normals (world axes), when the caller knows them (a planned
+        grip): the tendon hand then reports each estimated force's component into its face
+        (the pads measure the normal force anyway)."""
         if self.contact_estimator is not None:
-            return self.contact_estimate().normal
+            return self.contact_estimate(normals).normal
         return self.touch_sensors()
 
     def touch_sensors(self) -> NDArray[np.float64]:
@@ -398,15 +401,16 @@ class World:
         self._require_robot()
         return self.data.sensordata[self._idx.touch_adr].copy()
 
-    def contact_estimate(self) -> ContactEstimate:
+    def contact_estimate(self, normals: ArrayLike | None = None) -> ContactEstimate:
         """The tendon hand's fingertip forces estimated from its 32 tension sensors and joint
-        angles (:class:`~hand_sim.contact_estimate.ContactEstimator`); raises for the servo
-        hand."""
+        angles (:class:`~hand_sim.contact_estimate.ContactEstimator`; ``normals``: the contacts'
+        outward face normals, as in :meth:`touch`); raises for the servo hand."""
         self._require_robot()
         if self.contact_estimator is None:
             raise HandSimError(f"the {self.hand} hand has no tendons to estimate forces from")
+        faces = None if normals is None else np.asarray(normals, dtype=float).reshape(4, 3)
         return self.contact_estimator.estimate(
-            self.model, self.data, self.friction_memory.direction
+            self.model, self.data, self.friction_memory.direction, normals=faces
         )
 
     def wrist_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

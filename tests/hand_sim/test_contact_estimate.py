@@ -26,6 +26,7 @@ from hand_sim.contact_estimate import (
     DETECTION_THRESHOLD,
     ContactEstimate,
     least_force,
+    least_pressing,
 )
 from hand_sim.errors import HandSimError
 from hand_sim.scene import load_scene
@@ -183,3 +184,23 @@ def test_the_least_force_is_the_least_over_the_friction_band() -> None:
     centre = np.array([0.1, -0.2, 0.05, 0.0])
     exact = np.linalg.norm(solver @ centre)
     assert least_force(solver, centre, np.zeros(4)) == pytest.approx(exact)
+
+
+def test_the_least_force_into_a_face_is_the_least_over_the_box_corners() -> None:
+    """least_pressing against every corner of the friction box (a linear function's minimum
+    over a box is at a corner; joints with no band fixed at their centre), floored at 0, on 200
+    random fits and bands."""
+    import itertools
+
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        into = rng.normal(size=4) * rng.uniform(10.0, 200.0)
+        centre = rng.normal(size=4) * 0.05
+        band = np.where(rng.random(4) < 0.7, rng.uniform(0.0, 0.06, 4), 0.0)
+        corners = [
+            into @ (centre + np.array(signs) * band)
+            for signs in itertools.product((-1.0, 1.0), repeat=4)
+        ]
+        assert least_pressing(into, centre, band) == pytest.approx(
+            max(0.0, min(corners)), abs=1e-12
+        )
