@@ -87,7 +87,7 @@ def held_grasp() -> tuple[GraspOutcome, TensionLog]:
 
         sw.world.on_step = log.record
         try:
-            test_grasp(sw, composer, rng, out, squeezed)
+            test_grasp(sw, composer, rng, out, squeezed, regrasp=False)
         finally:
             sw.world.on_step = None
         if out.result == "held":

@@ -148,10 +148,12 @@ def build_parser() -> cli.ArgumentParser:
     )
     ph.add_argument(
         "--regrasp",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=True,
         help="a grasp the hand cannot take is synthesized once more by the same controller "
         "from where the hand's best seed posture touches the block (the task cycle's return "
-        "to Posture Control); counted apart in the report",
+        "to Posture Control, section 5); counted apart in the report; --no-regrasp tests "
+        "every grasp only as first synthesized",
     )
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)

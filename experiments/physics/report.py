@@ -52,7 +52,7 @@ def jobs_for(
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
-    regrasp: bool = False,
+    regrasp: bool = True,
 ) -> list[Job]:
     """The study's chunks: per model, object and controller (the same starts for every model),
     with the ``hand`` on the arm and, in 3-D, up to ``height_tries`` common heights tried;
@@ -92,7 +92,7 @@ def run_study(
     depth: float | None = None,
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
-    regrasp: bool = False,
+    regrasp: bool = True,
 ) -> list[dict]:
     """Every grasp, in a fixed order (model, object, controller, index) whatever the workers,
     taken by the ``hand`` ("servo" or "tendon"); ``height_tries`` as in :func:`jobs_for`."""

@@ -312,7 +312,7 @@ def test_grasp(
     snapshot: Snapshot | None = None,
     depth: float | None = None,
     height_tries: int = HEIGHT_TRIES,
-    regrasp: bool = False,
+    regrasp: bool = True,
 ) -> GraspOutcome:
     """Synthesize, place, close, squeeze and test one grasp (module docstring); fills ``out``.
     ``depth`` (planar model): every contact that far (m) below the top. 3-D model: the hand
@@ -416,7 +416,7 @@ class Job:
     #: 3-D model: common heights tried in turn (--height-tries; 1: only the task's best)
     height_tries: int = HEIGHT_TRIES
     #: an unreachable grasp is synthesized once more from contacts the hand holds (--regrasp)
-    regrasp: bool = False
+    regrasp: bool = True
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:

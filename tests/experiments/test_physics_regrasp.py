@@ -99,3 +99,16 @@ def test_the_regrasp_table_counts_first_takes_and_regrasps_apart() -> None:
     assert cells[4:6] == ["3", "2"]
     assert cells[6].startswith("2 / 2") and cells[7] == "1"
     assert regrasp_section([grasp(False, "held")]) == []
+
+
+def test_the_study_regrasps_by_default_and_no_regrasp_turns_it_off(tmp_path) -> None:
+    """The command line's default is the task cycle's loop; ``--no-regrasp`` (and only it) gives
+    the study of grasps as first synthesized, down to the jobs the workers run."""
+    from experiments.physics.cli import build_parser
+    from experiments.physics.report import jobs_for
+
+    parse = build_parser().parse_args
+    assert parse(["--out", str(tmp_path / "a")]).regrasp
+    assert not parse(["--out", str(tmp_path / "b"), "--no-regrasp"]).regrasp
+    assert all(j.regrasp for j in jobs_for(("square",), 2, 0))
+    assert not any(j.regrasp for j in jobs_for(("square",), 2, 0, regrasp=False))

@@ -156,7 +156,7 @@ def test_a_3d_grasp_out_of_reach_at_the_tasks_height_is_taken_and_held_higher_up
     from controllers.grasp.task_height import HEIGHT_GAP
 
     obj = "irregular_hexagon"
-    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (5,), 0, "3d")
+    job = Job(obj, PAPER_OBJECTS.index(obj), "kb", 0, (5,), 0, "3d", regrasp=False)
     [only] = run_job(dataclasses.replace(job, height_tries=1))
     [tried] = run_job(job)
     assert only["result"] == "unreachable" and only["height_rank"] == 0
