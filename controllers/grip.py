@@ -361,21 +361,19 @@ def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> Sque
     steps = control_steps(world)
     t0 = world.time
     settled_for = 0
+    slack = np.maximum(FORCE_TOLERANCE * grip.forces, FORCE_FLOOR)
+    sensed = world.touch(grip.normals)
     while world.time - t0 < max_time:
-        error = grip.forces - world.touch(grip.normals)
         grip.progress = np.clip(
-            grip.progress + FORCE_GAIN * error * CONTROL_PERIOD, 0.0, MAX_PROGRESS
+            grip.progress + FORCE_GAIN * (grip.forces - sensed) * CONTROL_PERIOD, 0.0, MAX_PROGRESS
         )
         world.set_hand_targets(grip.targets())
         world.step(steps)
-        slack = np.maximum(FORCE_TOLERANCE * grip.forces, FORCE_FLOOR)
-        ok = np.all(np.abs(world.touch(grip.normals) - grip.forces) <= slack)
-        settled_for = settled_for + 1 if ok else 0
+        sensed = world.touch(grip.normals)  # read once per step: the next error and the test
+        settled_for = settled_for + 1 if np.all(np.abs(sensed - grip.forces) <= slack) else 0
         if settled_for >= 5:
             break
-    return SqueezeResult(
-        settled_for >= 5, world.touch(grip.normals), grip.forces.copy(), world.time - t0
-    )
+    return SqueezeResult(settled_for >= 5, sensed, grip.forces.copy(), world.time - t0)
 
 
 def release(world: World, grip: Grip, *, duration: float = RELEASE_TIME) -> NDArray[np.float64]:

@@ -35,8 +35,8 @@ class GraspOutcome:
     palm_yaw: float | None = None  #: of the palm's x axis about the vertical
     palm_tilt: float | None = None  #: of the palm's approach axis from vertical
     squeeze_settled: bool = False
-    #: N per finger after the squeeze, as the hand senses them (World.touch: the servo hand's pads,
-    #: the tendon hand's estimate from its tensions)
+    #: N per finger after the squeeze, as the hand senses them (World.touch with the grip's
+    #: normals: the servo hand's pads, the tendon hand's estimated force into each face)
     grip_force: list[float] = field(default_factory=list)
     #: N per finger after the squeeze, the pads' true normal forces (World.touch_sensors; the same
     #: as grip_force on the servo hand, the ground truth of the estimate on the tendon hand)
