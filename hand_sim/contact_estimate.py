@@ -209,13 +209,13 @@ class ContactEstimator:
             p = tip.copy() if face is None else centre - self.pad_radius * face
             fv = np.zeros(3)
             solver = np.zeros((3, int(keep.sum())))
-            for _ in range(1 if face is not None else 2):
+            for _ in range(2):
                 mujoco.mj_jac(model, data, jac, None, p, body)
                 A = jac[:, self.finger_dofs[f]].T[keep]
                 solver = np.linalg.solve(A.T @ A + RIDGE**2 * np.eye(3), A.T)
                 fv = solver @ tau_ext[rows][keep]
                 size = float(np.linalg.norm(fv))
-                if size < 1e-9 or face is not None:
+                if size < 1e-9 or face is not None:  # at a face the point is known: one solve
                     break
                 p = centre + self.pad_radius * fv / size
             force[f], point[f] = fv, p
