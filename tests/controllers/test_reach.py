@@ -224,22 +224,6 @@ def carried_contacts(world: World, block: str, path: np.ndarray, lift_gap: float
     return bad
 
 
-def test_delivery_carries_the_block_to_the_place_point_without_collision():
-    world = World.build(load_scene("clutter3"))
-    target = ReachTarget.from_world(world, "pentagon")
-    plan = plan_coarse_reach(world, target)
-    execute_path(world, plan.path.path, hand_q=plan.hand_q)
-    assert fine_reach(world, "pentagon").reached  # fingertips on the block: "holding" it
-    delivery = plan_delivery(world, "pentagon", world.scene.place)
-    assert delivery.found, delivery.reason
-    np.testing.assert_allclose(delivery.block_goal[:2], world.scene.place, atol=2e-3)
-    table, height = world.scene.table.height, world.scene.block("pentagon").height
-    assert abs(delivery.block_goal[2] - (table + 0.5 * height + SET_DOWN_HOVER)) < 2e-3
-    assert carried_contacts(world, "pentagon", delivery.path, 0.02) == []
-    with pytest.raises(ReachError, match="place point"):
-        plan_delivery(world, "pentagon", [np.nan, 0.0])
-
-
 def _holding_the_pentagon(scene) -> World:
     """clutter3's world with the hand on the pentagon (coarse reach, fingertips on its faces)."""
     world = World.build(scene)
@@ -247,6 +231,25 @@ def _holding_the_pentagon(scene) -> World:
     execute_path(world, plan.path.path, hand_q=plan.hand_q)
     assert fine_reach(world, "pentagon").reached
     return world
+
+
+@pytest.fixture(scope="module")
+def held_pentagon():
+    """clutter3 with the fingertips on the pentagon, and its delivery plan to the scene's place
+    point (planning reads the world and leaves it as it is, so the tests share both)."""
+    world = _holding_the_pentagon(load_scene("clutter3"))
+    return world, plan_delivery(world, "pentagon", world.scene.place)
+
+
+def test_delivery_carries_the_block_to_the_place_point_without_collision(held_pentagon):
+    world, delivery = held_pentagon
+    assert delivery.found, delivery.reason
+    np.testing.assert_allclose(delivery.block_goal[:2], world.scene.place, atol=2e-3)
+    table, height = world.scene.table.height, world.scene.block("pentagon").height
+    assert abs(delivery.block_goal[2] - (table + 0.5 * height + SET_DOWN_HOVER)) < 2e-3
+    assert carried_contacts(world, "pentagon", delivery.path, 0.02) == []
+    with pytest.raises(ReachError, match="place point"):
+        plan_delivery(world, "pentagon", [np.nan, 0.0])
 
 
 def _palm_yaw(world: World, q: np.ndarray) -> float:
@@ -289,16 +292,17 @@ def test_a_tilted_hand_is_turned_only_where_the_five_joint_arm_can_hold_it() -> 
     assert reachable_turn(nominal, pivot, shift, flange_at, down, base) == nominal
 
 
-def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_place_point():
+def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_place_point(
+    held_pentagon,
+):
     """A post stands 3 cm beyond where a fingertip would be at the set-down: the hand as it holds
     the block (and turned with the waist) cannot set it down; turned further about the place
     point it can (controllers.delivery.SET_DOWN_TURNS, each moved to the nearest turn the arm
     can hold the tilted hand at; before them: "no collision-free posture above the place
     point"), and the carried block touches nothing on the way (independent
     check)."""
-    scene = load_scene("clutter3")
-    world = _holding_the_pentagon(scene)
-    first = plan_delivery(world, "pentagon", scene.place)
+    world, first = held_pentagon
+    scene = world.scene
     assert first.found, first.reason
     m = world.model
     d = mujoco.MjData(m)

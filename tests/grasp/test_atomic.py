@@ -32,10 +32,13 @@ def test_trials_start_with_four_different_sectors():
 
 
 def test_short_training_lowers_failures_and_is_deterministic(tmp_path):
+    """30 epochs: the last eight fail less often than the first eight (seeds 0-2: 0.154, 0.150,
+    0.154 -> 0.101, 0.106, 0.099) and the learned policy less often than the untrained one on
+    the same 100 trials (0.06 against 0.10 for each of those seeds)."""
     tri = paper_object("irregular_triangle")
     table = ScoreTable(tri)
-    a = train_atomic(tri, np.random.default_rng(0), epochs=60, table=table)
-    assert a.failure_per_epoch[-15:].mean() < a.failure_per_epoch[:15].mean()
+    a = train_atomic(tri, np.random.default_rng(0), epochs=30, table=table)
+    assert a.failure_per_epoch[-8:].mean() < a.failure_per_epoch[:8].mean()
     learned = evaluate_atomic(a.q, tri, np.random.default_rng(9), 0.0, 100)
     untrained = evaluate_atomic(np.zeros_like(a.q), tri, np.random.default_rng(9), 0.0, 100)
     assert learned.failure_rate < untrained.failure_rate

@@ -56,8 +56,10 @@ def test_boltzmann_is_greedy_when_cold_and_uniform_when_hot():
 
 
 def test_short_training_run_learning_curve_goes_down():
-    r = train_qlearning(np.random.default_rng(0), epochs=30)
-    assert r.failure_per_epoch[-10:].mean() < r.failure_per_epoch[:10].mean()
+    """16 epochs: the last five fail less often than the first five (seed 0: 0.196 -> 0.120;
+    seeds 1-3 went down too, 0.213 -> 0.147, 0.211 -> 0.133, 0.187 -> 0.167)."""
+    r = train_qlearning(np.random.default_rng(0), epochs=16)
+    assert r.failure_per_epoch[-5:].mean() < r.failure_per_epoch[:5].mean()
     assert r.q.shape == (N_BINS * N_BINS, len(ACTIONS)) and np.any(r.q != 0)
 
 
