@@ -278,6 +278,23 @@ def _set(x, k, value):
     return y
 
 
+def _along_grid(f, theta, phi, task, k, *, theta_k=None, phi_k=None):
+    """The least eps_MC (T,) over contact k moved (on its face's plane) to each row of the grid
+    ``theta_k`` or ``phi_k`` (G, T), the other contacts held: all G moves in one batch."""
+    g = len(theta_k if theta_k is not None else phi_k)
+
+    def tiled(x):
+        return np.tile(x, (g,) + (1,) * (x.ndim - 1))
+
+    th, ph = tiled(theta), tiled(phi)
+    if theta_k is not None:
+        th[:, k] = np.ravel(theta_k)
+    if phi_k is not None:
+        ph[:, k] = np.ravel(phi_k)
+    frames = f._replace(**{name: tiled(value) for name, value in f._asdict().items()})
+    return eps_mc(move_on_faces(frames, th, ph), tiled(task)).reshape(g, -1).min(0)
+
+
 @pytest.mark.parametrize("seed", [40, 41])
 def test_fc_minimizers_are_the_minima_along_their_coordinate(seed):
     rng = np.random.default_rng(seed)
@@ -329,11 +346,10 @@ def test_mc_phi_minimizer_is_the_minimum_along_phi(seed):
         # grid search along phi on the face's plane: side faces phi in (-pi/2, pi/2), the top's
         # plane phi in (0, pi), the base's (-pi, 0)
         top, base = f.face[:, k] == TOP_FACE, f.face[:, k] == BASE_FACE
-        best = np.full(T, np.inf)
-        for u in np.linspace(0.0, 1.0, 3001):
-            side_p, top_p = -1.5 + 3.0 * u, 0.02 + (np.pi - 0.04) * u
-            p_k = np.where(top, top_p, np.where(base, -top_p, side_p))
-            best = np.minimum(best, eps_mc(move_on_faces(f, theta, _set(phi, k, p_k)), task))
+        u = np.linspace(0.0, 1.0, 3001)[:, None]
+        side_p, top_p = -1.5 + 3.0 * u, 0.02 + (np.pi - 0.04) * u
+        p_k = np.where(top, top_p, np.where(base, -top_p, side_p))  # (grid, T)
+        best = _along_grid(f, theta, phi, task, k, phi_k=p_k)
         inside = np.where(
             f.on_cap[:, k], np.abs(star[:, k]) < np.pi - 0.1, np.abs(star[:, k]) < 1.4
         )
@@ -369,8 +385,8 @@ def test_mc_theta_minimizer_eq11(seed):
         at = move_on_faces(f, _set(theta, k, star[:, k]), phi)
         np.testing.assert_allclose(eps_mc(at, task)[c], eps_star[c, k], rtol=1e-9, atol=1e-12)
         assert np.allclose(mc_gradient(at, task)[c, k, 0], 0.0, atol=1e-9)
-        grid = np.linspace(-np.pi, np.pi, 2001)
-        best = np.min([eps_mc(move_on_faces(f, _set(theta, k, g), phi), task) for g in grid], 0)
+        grid = np.broadcast_to(np.linspace(-np.pi, np.pi, 2001)[:, None], (2001, T))
+        best = _along_grid(f, theta, phi, task, k, theta_k=grid)
         assert np.all(eps_star[c, k] <= best[c] + 1e-12)
         np.testing.assert_allclose(eps_star[c, k], best[c], atol=1e-5)
     # phi = 0 on side faces: the minimum along theta itself
