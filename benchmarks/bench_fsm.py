@@ -4,11 +4,13 @@ episodes, and how far the episode is from the cost of its physics alone.
 Runs ``python -m fsm.run``'s episode loop (fsm.machine.run_episode) on a scene, with and without
 the recording, and prints one row per state (summed over the episodes) and the totals. Each
 episode's control inputs are captured at every simulation step; the same steps are then replayed
-on a freshly built world of the same scene, with nothing but ``mj_step`` (no planning, no vision,
-no recording): the physics-only time. The last lines give the process's wall time since it
+on a freshly built world of the same scene and hand, with nothing but ``mj_step`` (and, for the
+tendon hand, its joint loop before every step; no planning, no vision, no recording): the
+physics-only time. The last lines give the process's wall time since it
 started (imports included) and the ratio of the episode's wall time to the physics-only time.
 
-Usage: python -m benchmarks.bench_fsm [--scene clutter3] [--seeds 1] [--controller pi] [--no-record]
+Usage: python -m benchmarks.bench_fsm [--scene clutter3] [--seeds 1] [--controller pi]
+[--hand tendon|servo] [--no-record]
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fsm.context import CONTROLLERS, EpisodeOptions
+from fsm.run import add_hand
 from hand_sim.clitools import ERRORS, ArgumentParser, first_paragraph, integer, run_main
 
 PROG = "python -m benchmarks.bench_fsm"
@@ -92,18 +95,25 @@ class Replay:
 
 
 def replay_physics(options: EpisodeOptions, log: StepLog, final_qpos: NDArray) -> Replay:
-    """Build ``options``'s scene afresh and step it with the logged control inputs only."""
+    """Build ``options``'s scene afresh, with its hand, and step it with the logged control
+    inputs only: MuJoCo's own stepping for the servo hand; for the tendon hand, its joint loop
+    (:meth:`hand_sim.tendon_drive.TendonDrive.step`, the tensions computed before every physics
+    step) is part of the physics and is replayed too."""
     import mujoco
 
     from fsm.layout import episode_scene
     from hand_sim.world import World
 
-    world = World.build(episode_scene(options.scene, options.seed, options.blocks))
+    scene = episode_scene(options.scene, options.seed, options.blocks)
+    world = World.build(scene, hand=options.hand)
     m, d = world.model, world.data
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for ctrl, n in zip(log.ctrl, log.steps, strict=True):
         d.ctrl[:] = ctrl
-        mujoco.mj_step(m, d, nstep=n)
+        if world.tendon_drive is None:
+            mujoco.mj_step(m, d, nstep=n)
+        else:
+            world.step(n)
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     error = float(np.abs(d.qpos - final_qpos).max())
     return Replay(wall, cpu, int(sum(log.steps)), error)
@@ -115,6 +125,7 @@ def run(argv: list[str] | None) -> int:
     ap.add_argument("--seeds", type=integer(1, 100), default=1, help="episodes (seeds 0..N-1)")
     ap.add_argument("--controller", default="pi", choices=CONTROLLERS, help="grasp controller")
     ap.add_argument("--no-record", action="store_true", help="time only the run without the .rrd")
+    add_hand(ap)
     args = ap.parse_args(argv)
     from fsm.machine import run_episode
     from fsm.recorder_protocol import NullRecorder
@@ -134,6 +145,7 @@ def run(argv: list[str] | None) -> int:
                     scene=args.scene,
                     seed=seed,
                     controller=args.controller,
+                    hand=args.hand,
                     out=out,
                     record=True,  # the recorder factory below decides what is recorded
                 )

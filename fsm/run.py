@@ -20,6 +20,7 @@ from fsm.context import (
     APPROACH_CHOICES,
     CONTROLLERS,
     DEFAULT_GRASP_MODEL,
+    DEFAULT_HAND,
     GRASP_MODELS,
     HANDS,
     PLACE_FALLBACKS,
@@ -92,11 +93,12 @@ def add_hand(ap: argparse.ArgumentParser) -> None:
     """``--hand``, as ``fsm.run`` and ``experiments.bench`` take it."""
     ap.add_argument(
         "--hand",
-        default="servo",
+        default=DEFAULT_HAND,
         choices=HANDS,
-        help="the hand on the arm: servo (models/hand.xml, 16 position servos) or tendon (the "
-        "Utah/MIT hand as built, models/utah_mit_hand/: 32 pull-only tendons, joint PD loop "
-        "every physics step; docs/models.md)",
+        help="the hand on the arm: tendon (default; the Utah/MIT hand as built, "
+        "models/utah_mit_hand/: 32 pull-only tendons, joint PD loop every physics step) or servo "
+        "(models/hand.xml, 16 position servos; the hand of the results measured before it; "
+        "docs/models.md)",
     )
 
 

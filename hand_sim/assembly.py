@@ -24,10 +24,11 @@ MODELS_DIR = models_dir()
 ARM_XML, HAND_XML, TABLE_XML = "arm.xml", "hand.xml", "table.xml"
 #: The hands the arm can carry (``World.build(hand=...)``, ``fsm.run --hand``): "servo", the
 #: generic hand of models/hand.xml with 16 position servos; "tendon", the Utah/MIT hand as built
-#: (models/utah_mit_hand/), 32 pull-only tendons driven by :mod:`hand_sim.tendon_drive`.
+#: (models/utah_mit_hand/), 32 pull-only tendons driven by :mod:`hand_sim.tendon_drive`, the
+#: default (docs/models.md, "The default hand").
 HAND_XMLS: dict[str, str] = {"servo": HAND_XML, "tendon": "utah_mit_hand/utah_mit_hand.xml"}
 HAND_KINDS: tuple[str, ...] = tuple(HAND_XMLS)
-DEFAULT_HAND = "servo"
+DEFAULT_HAND = "tendon"
 #: Actuator group of the tendon hand's 16 joint-target registers (:func:`_add_target_registers`),
 #: disabled in the world's options so that they exert no force.
 TARGET_REGISTER_GROUP = 5

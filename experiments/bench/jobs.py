@@ -68,7 +68,7 @@ class Job:
     keep_rrd: bool = False  #: return the recording of a success too
     cycles: int | None = 1  #: blocks picked one after another (None: clear the table)
     place_fallback: str = "none"  #: as fsm.run's --place-fallback
-    hand: str = "servo"  #: as fsm.run's --hand
+    hand: str = "tendon"  #: as fsm.run's --hand
 
 
 @dataclass(frozen=True)

@@ -166,8 +166,8 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--place-fallback {settings['place_fallback']}")
     if settings.get("models"):
         parts.append(f"--models {settings['models']}")
-    if settings.get("hand", "servo") != "servo":
-        parts.append(f"--hand {settings['hand']}")
+    # always written: the default hand changed (servo before, tendon since)
+    parts.append(f"--hand {settings.get('hand', 'servo')}")
     return " ".join(parts)
 
 

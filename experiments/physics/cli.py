@@ -20,7 +20,7 @@ from hand_sim.clitools import ERRORS
 PROG = "python -m experiments.physics"
 #: The hands the study can put on the arm: ``hand_sim.assembly.HAND_KINDS`` and its default,
 #: repeated here because the command line loads MuJoCo only when it runs (tested equal).
-HANDS, DEFAULT_HAND = ("servo", "tendon"), "servo"
+HANDS, DEFAULT_HAND = ("servo", "tendon"), "tendon"
 #: Worker processes (more than the machine's cores only adds switching).
 MAX_WORKERS = 64
 

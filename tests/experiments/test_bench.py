@@ -257,11 +257,13 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path: Path, capsys)
 
 
 def test_the_hand_is_a_setting_of_the_bench_and_of_every_episode(tmp_path: Path) -> None:
+    # the default is the Utah/MIT hand; results written before the hand was a setting were the
+    # servo hand's, so a resume reads a missing hand as servo
     plan = bench.plan_from_args([*QUICK, "--seeds", "0:2", "--out", str(tmp_path / "o")])
-    assert plan.settings["hand"] == "servo" and {j.hand for j in plan.jobs} == {"servo"}
-    argv = [*QUICK, "--seeds", "0:2", "--hand", "tendon", "--out", str(tmp_path / "t")]
-    plan = bench.plan_from_args(argv)
     assert plan.settings["hand"] == "tendon" and {j.hand for j in plan.jobs} == {"tendon"}
+    argv = [*QUICK, "--seeds", "0:2", "--hand", "servo", "--out", str(tmp_path / "t")]
+    plan = bench.plan_from_args(argv)
+    assert plan.settings["hand"] == "servo" and {j.hand for j in plan.jobs} == {"servo"}
     assert "hand" in bench.RESUME_KEYS and bench.SETTING_DEFAULTS["hand"] == "servo"
 
 
@@ -315,9 +317,13 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
     assert bench.main([*QUICK, "--seeds", "0:10", "--resume", "--out", str(tmp_path)]) == 2
     (err,) = capsys.readouterr().err.strip().splitlines()
     assert "--model planar" in err, err
-    # everything asked for is done: nothing runs, the report is rebuilt
+    # nor, written before the hand was a setting, on the default (tendon) hand
     argv = [*QUICK, "--seeds", "0:10", "--resume", "--model", "planar", "--out", str(tmp_path)]
-    assert bench.main(argv) == 0
+    assert bench.main(argv) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "--hand servo" in err, err
+    # everything asked for is done: nothing runs, the report is rebuilt
+    assert bench.main([*argv, "--hand", "servo"]) == 0
     assert (tmp_path / "results.jsonl").read_bytes() == before
     check_report(tmp_path)
 

@@ -101,8 +101,11 @@ def test_a_finger_fine_reach_leaves_far_off_gives_up_with_its_reason(tmp_path: P
     """Random scene 4 (a triangle alone), lateral, servo hand: Fine Reach leaves the ring finger
     more than 3 cm (``fine_reach_give_up``) from its surface point without touching anything, so
     Fine Reach asks for a regrasp; there is no other palm pose beside the block, and the episode
-    fails naming the finger and its distance ("fingers cannot reach")."""
-    result = _random_episode(4, tmp_path, approach="lateral", block_range=(1, 3))
+    fails naming the finger and its distance ("fingers cannot reach"). On the servo hand, where
+    the scene was found: on the tendon hand Fine Reach ends with ff, mf and rf "stopped on
+    touch" 36-69 mm from their surface points, never giving up, and the episode fails later in
+    Posture Control ("contact unreachable after posture retries: ... ff 40 mm short")."""
+    result = _random_episode(4, tmp_path, approach="lateral", block_range=(1, 3), hand="servo")
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
     assert not result.success and result.failure == "fingers cannot reach", log
     gave_up = re.match(r"(\w\w) stayed (\d+) mm from its surface point", result.failure_detail)
@@ -134,8 +137,12 @@ def test_a_squeeze_that_loses_a_finger_opens_the_hand_and_regrasps(tmp_path: Pat
     Posture Control the thumb loses the block in the squeeze; the hand opens and regrasps from
     Fine Reach with the wrist turned, and the block is delivered. (Random scene 2's planar grasp
     showed this until Posture Control's hold stopped pressing the pads into the block: its
-    squeeze now holds at once, as on seeds 3-14.)"""
-    result = _random_episode(104, tmp_path)
+    squeeze now holds at once, as on seeds 3-14.) On the servo hand, where the scene was found:
+    the tendon hand, whose squeeze regulates each pad's force into its face, holds scene 104's
+    block at its first squeeze (after two regrasps from Posture Control) and delivers it,
+    1.4 mm from the place point, never regrasping from Grasp Object (docs/models.md, "The
+    default hand")."""
+    result = _random_episode(104, tmp_path, hand="servo")
     regrasps = [
         v
         for v in result.visits

@@ -109,10 +109,10 @@ def test_tendon_recording_logs_the_32_tensions(tmp_path: Path, world: World) -> 
 
 
 def test_servo_world_is_unchanged() -> None:
-    """The default world: the 5 arm and 16 hand position servos as before, no tendon loop, and
-    World.step is MuJoCo's own stepping of the same model."""
+    """The servo hand's world (``hand="servo"``): the 5 arm and 16 hand position servos as
+    before, no tendon loop, and World.step is MuJoCo's own stepping of the same model."""
     scene = load_scene("clutter3")
-    world = World.build(scene)
+    world = World.build(scene, hand="servo")
     m = world.model
     assert world.hand == "servo" and world.tendon_drive is None and m.ntendon == 0
     names = [m.actuator(i).name for i in range(m.nu)]

@@ -97,7 +97,9 @@ def test_each_hand_servo_reaches_its_target(world: World) -> None:
 def test_touch_is_zero_in_free_space_and_measures_a_block_pressing_on_a_fingertip(
     finger: int,
 ) -> None:
-    world = World.build(load_scene("single_square"))
+    """The servo hand's fingertip touch pads (the tendon hand has none: its touch is estimated
+    from the tensions, tests/hand_sim/test_contact_estimate.py)."""
+    world = World.build(load_scene("single_square"), hand="servo")
     world.set_arm_targets(np.zeros(5))  # every link straight up, tool axis up
     hand = np.zeros(16)
     for f in range(len(robot.FINGERS)):  # the others curled out of the way
@@ -187,10 +189,11 @@ def test_a_block_at_the_scene_table_edge_stands_on_the_physical_table(tmp_path) 
 def test_touch_feels_the_pad_not_the_back_of_the_fingertip(side: float) -> None:
     """A block face pressed 1 mm into the palmar side of a fingertip is felt by its touch sensor;
     pressed into the back of the fingertip, the sensor reads 0 while the contact list
-    (hand_sim.contacts) still sees the force on the distal link."""
+    (hand_sim.contacts) still sees the force on the distal link. The servo hand's touch pads
+    (the tendon hand's estimate: tests/hand_sim/test_contact_estimate.py)."""
     from hand_sim.contacts import robot_contacts
 
-    world = World.build(load_scene("single_square"))
+    world = World.build(load_scene("single_square"), hand="servo")
     world.set_arm_targets(np.zeros(5))
     hand = np.zeros(16)
     for f in range(len(robot.FINGERS)):
