@@ -30,6 +30,7 @@ and sources. Everything is numpy on a compiled MuJoCo model and its data; there 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import mujoco
 import numpy as np
@@ -261,11 +262,68 @@ class TendonDrive:
         adr = model.actuator_actadr[acts]
         data.act[adr[adr >= 0]] = self.pretension
 
+    @cached_property
+    def _loop(self) -> _LoopConstants:
+        return _LoopConstants.of(self)
+
     def step(
         self, model: mujoco.MjModel, data: mujoco.MjData, target: ArrayLike, n: int = 1
     ) -> None:
         """``n`` physics steps with the loop closed before each one: the tensions towards the
-        joint ``target`` angles are computed from the state, written, and one step is taken."""
+        joint ``target`` angles are computed from the state, written, and one step is taken.
+        The same arithmetic as :meth:`command` then :meth:`apply`, bit for bit (the two clips
+        merged into one, to the smaller bound; min and max are exact), with the constants and
+        the index arrays computed once: the loop runs at every 2 ms physics step."""
+        c = self._loop
+        target = np.asarray(target, float)
+        tensions = np.empty((len(c.radius), 2))
+        flex, ext = tensions[:, 0], tensions[:, 1]
         for _ in range(n):
-            self.apply(data, self.command(data, target))
+            tau = c.kp * (target - data.sensordata[c.angle_adr]) - c.kd * data.qvel[c.dof_adr]
+            np.clip(tau, c.low, c.high, out=tau)
+            np.maximum(tau, 0.0, out=flex)
+            np.negative(tau, out=tau)
+            np.maximum(tau, 0.0, out=ext)
+            tensions /= c.radius2
+            tensions += self.pretension
+            data.ctrl[c.actuators] = tensions.ravel()
             mujoco.mj_step(model, data)
+
+
+@dataclass(frozen=True)
+class _LoopConstants:
+    """What :meth:`TendonDrive.step` needs at every step, computed once: index arrays, gains,
+    the torque bound (the smaller of the gains' limit and :func:`torque_limit`) and the radii as
+    a (16, 2) column pair."""
+
+    actuators: NDArray[np.int_]
+    angle_adr: NDArray[np.int_]
+    dof_adr: NDArray[np.int_]
+    kp: NDArray[np.float64]
+    kd: NDArray[np.float64]
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+    radius: NDArray[np.float64]
+    radius2: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, drive: TendonDrive) -> _LoopConstants:
+        layout, gains = drive.layout, drive.gains
+        r = np.asarray(layout.radius, float)
+        if np.any(r <= 0.0) or drive.pretension < 0.0:
+            raise ValueError("pulley radii must be positive and the pretension non-negative")
+        limit = torque_limit(r, layout.max_tension, drive.pretension)
+        if np.any(limit < 0.0):
+            raise ValueError("the pretension exceeds the maximum tension")
+        bound = np.minimum(gains.torque_limit, limit)
+        return cls(
+            actuators=layout.actuators,
+            angle_adr=layout.angle_sensor_adr,
+            dof_adr=layout.dof_adr,
+            kp=gains.kp,
+            kd=gains.kd,
+            low=-bound,
+            high=bound,
+            radius=r,
+            radius2=np.column_stack((r, r)),
+        )

@@ -133,3 +133,28 @@ def test_servo_world_is_unchanged() -> None:
 def test_an_unknown_hand_is_refused() -> None:
     with pytest.raises(HandSimError, match="unknown hand 'banana'; valid: servo, tendon"):
         World.build(load_scene("clutter3"), hand="banana")
+
+
+def test_the_drives_step_is_command_then_apply_bit_for_bit() -> None:
+    """TendonDrive.step (constants computed once, the two clips merged) takes exactly the steps
+    that computing each step's TensionCommand (the PD torque, its clip, allocate_tensions) and
+    writing it would: the same qpos and tensions to the last bit, the fingers moving against
+    the block and their torques clipped (targets far outside reach) on the way."""
+    scene = load_scene("clutter3")
+    fast, slow = World.build(scene, hand="tendon"), World.build(scene, hand="tendon")
+    drive = fast.tendon_drive
+    rng = np.random.default_rng(3)
+    clipped = False
+    for _ in range(12):
+        target = rng.uniform(-2.0, 2.5, 16)  # beyond the ranges: the torques are clipped
+        limit = drive.gains.torque_limit
+        clipped |= bool(np.any(np.abs(drive.command(slow.data, target).torque) >= limit))
+        drive.step(fast.model, fast.data, target, 15)
+        for _ in range(15):
+            drive.apply(slow.data, drive.command(slow.data, target))
+            mujoco.mj_step(slow.model, slow.data)
+        np.testing.assert_array_equal(fast.data.qpos, slow.data.qpos)
+        np.testing.assert_array_equal(fast.data.ctrl, slow.data.ctrl)
+        np.testing.assert_array_equal(fast.data.actuator_force, slow.data.actuator_force)
+    assert clipped
+    assert float(np.abs(fast.hand_qpos() - POSTURE).max()) > 0.1  # the hand moved
