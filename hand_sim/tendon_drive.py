@@ -166,6 +166,20 @@ def torque_limit(
     return np.asarray(radius, float) * (np.asarray(max_tension, float) - pretension)
 
 
+def _checked_limit(
+    radius: ArrayLike, max_tension: ArrayLike, pretension: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The pulley radii and :func:`torque_limit`, refusing a non-positive radius, a negative
+    pretension or one above the maximum tension."""
+    r = np.asarray(radius, float)
+    if np.any(r <= 0.0) or pretension < 0.0:
+        raise ValueError("pulley radii must be positive and the pretension non-negative")
+    limit = torque_limit(r, max_tension, pretension)
+    if np.any(limit < 0.0):
+        raise ValueError("the pretension exceeds the maximum tension")
+    return r, limit
+
+
 def allocate_tensions(
     torque: ArrayLike,
     radius: ArrayLike,
@@ -176,12 +190,7 @@ def allocate_tensions(
     picks the tendon that pulls, T = T0 + |tau| / r on it and T0 on the other. A torque beyond
     :func:`torque_limit` is clipped to it, so every tension stays in [T0, T_max]."""
     requested = np.asarray(torque, float)
-    r = np.asarray(radius, float)
-    if np.any(r <= 0.0) or pretension < 0.0:
-        raise ValueError("pulley radii must be positive and the pretension non-negative")
-    limit = torque_limit(r, max_tension, pretension)
-    if np.any(limit < 0.0):
-        raise ValueError("the pretension exceeds the maximum tension")
+    r, limit = _checked_limit(radius, max_tension, pretension)
     tau = np.clip(requested, -limit, limit)
     flex = pretension + np.maximum(tau, 0.0) / r
     ext = pretension + np.maximum(-tau, 0.0) / r
@@ -309,12 +318,7 @@ class _LoopConstants:
     @classmethod
     def of(cls, drive: TendonDrive) -> _LoopConstants:
         layout, gains = drive.layout, drive.gains
-        r = np.asarray(layout.radius, float)
-        if np.any(r <= 0.0) or drive.pretension < 0.0:
-            raise ValueError("pulley radii must be positive and the pretension non-negative")
-        limit = torque_limit(r, layout.max_tension, drive.pretension)
-        if np.any(limit < 0.0):
-            raise ValueError("the pretension exceeds the maximum tension")
+        r, limit = _checked_limit(layout.radius, layout.max_tension, drive.pretension)
         bound = np.minimum(gains.torque_limit, limit)
         return cls(
             actuators=layout.actuators,
