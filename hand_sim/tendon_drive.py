@@ -285,7 +285,7 @@ class TendonDrive:
         the index arrays computed once: the loop runs at every 2 ms physics step."""
         c = self._loop
         target = np.asarray(target, float)
-        tensions = np.empty((len(c.radius), 2))
+        tensions = np.empty_like(c.radius2)
         flex, ext = tensions[:, 0], tensions[:, 1]
         for _ in range(n):
             tau = c.kp * (target - data.sensordata[c.angle_adr]) - c.kd * data.qvel[c.dof_adr]
@@ -312,7 +312,6 @@ class _LoopConstants:
     kd: NDArray[np.float64]
     low: NDArray[np.float64]
     high: NDArray[np.float64]
-    radius: NDArray[np.float64]
     radius2: NDArray[np.float64]
 
     @classmethod
@@ -328,6 +327,5 @@ class _LoopConstants:
             kd=gains.kd,
             low=-bound,
             high=bound,
-            radius=r,
             radius2=np.column_stack((r, r)),
         )
