@@ -53,11 +53,9 @@ class Contact:
 
 @dataclass(frozen=True, eq=False)
 class Scan:
-    """Collision status and palm pose of many arm configurations."""
+    """Collision status of many arm configurations."""
 
     collides: NDArray[np.bool_]  #: (N,)
-    palm_position: NDArray[np.float64]  #: (N, 3) world position of the palm centre
-    approach_axis: NDArray[np.float64]  #: (N, 3) world direction of the hand's +z axis
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +124,10 @@ class CollisionChecker:
         except SimulationError as e:
             raise ReachError(str(e)) from e
         self._arm_qpos = idx.arm_qpos
+        first = int(idx.arm_qpos[0])
+        contiguous = np.array_equal(idx.arm_qpos, np.arange(first, first + len(idx.arm_qpos)))
+        #: the arm's qpos as one slice when they are contiguous (a faster write than an index)
+        self._arm_slice = slice(first, first + len(idx.arm_qpos)) if contiguous else None
         self._arm_dof = idx.arm_dof
         self._hand_qpos = idx.hand_qpos
         self.arm_limits = self.model.jnt_range[idx.arm_joints].copy()
@@ -244,23 +246,28 @@ class CollisionChecker:
         return self.data.ncon > 0
 
     def scan(self, configs: ArrayLike) -> Scan:
-        """Collision status and palm pose of every row of ``configs`` (N, 5)."""
+        """Collision status of every row of ``configs`` (N, 5). The loop holds only MuJoCo's
+        calls (about 1 us of kinematics and 5 us of collision a posture): a grid of 14^4
+        postures is scanned per planned path."""
         q = np.asarray(configs, dtype=float)
         if q.ndim != 2 or q.shape[1] != len(robot.ARM_JOINTS):
             raise ReachError(f"configs must have shape (N, 5), got {q.shape}")
         m, d = self.model, self.data
-        n = len(q)
-        hit = np.zeros(n, dtype=bool)
-        pos = np.empty((n, 3))
-        axis = np.empty((n, 3))
-        site = self.palm_site
-        for i in range(n):
-            self._place(q[i])
-            mujoco.mj_collision(m, d)
-            hit[i] = d.ncon > 0
-            pos[i] = d.site_xpos[site]
-            axis[i] = d.site_xmat[site, 2::3]
-        return Scan(hit, pos, axis)
+        kinematics, collision = mujoco.mj_kinematics, mujoco.mj_collision
+        counts = np.zeros(len(q), dtype=np.int64)
+        if self._carried is not None or self._arm_slice is None:
+            for i in range(len(q)):
+                self._place(q[i])
+                collision(m, d)
+                counts[i] = d.ncon
+        else:
+            qpos, arm = d.qpos, self._arm_slice
+            for i, row in enumerate(q):
+                qpos[arm] = row
+                kinematics(m, d)
+                collision(m, d)
+                counts[i] = d.ncon
+        return Scan(counts > 0)
 
     def palm_pose(self, q_arm: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (3,) and rotation matrix (3, 3) of the palm centre at ``q_arm``."""

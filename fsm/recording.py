@@ -43,6 +43,7 @@ from hand_sim.recorder import (
 from hand_sim.telemetry import (
     ESTIMATE_PATH,
     FORCE_ARROW_SCALE,
+    IMAGE_HZ,
     PART_COLOURS,
     TENDON_PATH,
     RecordingStats,
@@ -120,7 +121,7 @@ class EpisodeRecorder(ClosesOnExit):
         *,
         overhead_width: int = 640,
         overhead_height: int = 480,
-        image_rate_hz: float = 5.0,
+        image_rate_hz: float = IMAGE_HZ,
         body_rate_hz: float = 50.0,
         scalar_rate_hz: float = 50.0,
         contact_rate_hz: float = 10.0,

@@ -61,6 +61,9 @@ class OverheadCamera(ClosesOnExit):
         flags = self._renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        # the table fills the camera's whole view: without the skybox pass the images are the
+        # same to the bit (tests/hand_sim/test_camera.py) and a 640x480 frame ~1 ms cheaper
+        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
         fovy = math.radians(float(world.model.cam_fovy[self.camera_id]))
         self.focal_px = 0.5 * height / math.tan(0.5 * fovy)
 

@@ -121,6 +121,8 @@ class ContactEstimator:
     friction: NDArray[np.float64]  #: (16,) joint Coulomb friction (N m)
     joint_range: NDArray[np.float64]  #: (16, 2) joint ranges (rad)
     pad_radius: float = robot.PAD_RADIUS
+    #: the fit's ridge term lambda^2 I (step 3)
+    _ridge: NDArray[np.float64] = field(default_factory=lambda: RIDGE**2 * np.eye(3), repr=False)
 
     @classmethod
     def for_model(cls, model: mujoco.MjModel, prefix: str = "") -> ContactEstimator:
@@ -194,40 +196,27 @@ class ContactEstimator:
         at_limit = (q < lo + LIMIT_MARGIN) | (q > hi - LIMIT_MARGIN)
         n = len(robot.FINGERS)
         per = robot.JOINTS_PER_FINGER
-        force, point = np.zeros((n, 3)), np.zeros((n, 3))
+        stuck_friction = np.where(np.abs(qdot) > MOVING_SPEED, 0.0, self.friction)
+        faces = None if normals is None else np.asarray(normals, dtype=float)
+        if at_limit.any():
+            force, point, solvers = self._fit_each(model, data, tau_ext, at_limit, faces)
+        else:
+            force, point, solvers = self._fit_all(model, data, tau_ext, faces)
         uncertainty = np.zeros(n)
         lows = np.zeros(n) if least else None
-        stuck_friction = np.where(np.abs(qdot) > MOVING_SPEED, 0.0, self.friction)
-        jac = np.zeros((3, model.nv))
         for f in range(n):
-            rows = slice(per * f, per * (f + 1))
-            keep = ~at_limit[rows]
-            body = int(model.site_bodyid[self.tip_sites[f]])
-            tip = data.site_xpos[self.tip_sites[f]]
-            centre = data.site_xpos[self.pad_centres[f]]
-            face = None if normals is None else np.asarray(normals[f], dtype=float)
-            p = tip.copy() if face is None else centre - self.pad_radius * face
-            fv = np.zeros(3)
-            solver = np.zeros((3, int(keep.sum())))
-            for _ in range(2):
-                mujoco.mj_jac(model, data, jac, None, p, body)
-                A = jac[:, self.finger_dofs[f]].T[keep]
-                solver = np.linalg.solve(A.T @ A + RIDGE**2 * np.eye(3), A.T)
-                fv = solver @ tau_ext[rows][keep]
-                size = float(np.linalg.norm(fv))
-                if size < 1e-9 or face is not None:  # at a face the point is known: one solve
-                    break
-                p = centre + self.pad_radius * fv / size
-            force[f], point[f] = fv, p
-            band = stuck_friction[rows][keep]
+            keep = ~at_limit[per * f : per * (f + 1)]
+            solver = solvers[f]
+            band = stuck_friction[per * f : per * (f + 1)][keep]
             uncertainty[f] = float(np.linalg.norm(solver, axis=0) @ band)
             if lows is not None:
                 # the stuck joints' torques without the memory's friction, +- F about that
+                rows = slice(per * f, per * (f + 1))
                 centre = tau_ext[rows][keep] + band * sliding[rows][keep]
                 lows[f] = (
                     least_force(solver, centre, band)
-                    if face is None
-                    else least_pressing(-face @ solver, centre, band)
+                    if faces is None
+                    else least_pressing(-faces[f] @ solver, centre, band)
                 )
         pressing = np.linalg.norm(force, axis=1)
         if normals is not None:
@@ -241,6 +230,87 @@ class ContactEstimator:
             uncertainty=uncertainty,
             least=lows,
         )
+
+    def _start_points(self, data: mujoco.MjData, faces: NDArray[np.float64] | None) -> NDArray:
+        """(4, 3) first contact points (step 3): the tip sites, or the pad points facing the
+        faces."""
+        if faces is None:
+            return data.site_xpos[self.tip_sites].copy()
+        return data.site_xpos[self.pad_centres] - self.pad_radius * faces
+
+    def _fit_all(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        tau_ext: NDArray[np.float64],
+        faces: NDArray[np.float64] | None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Step 3 for the four fingers at once, none at a joint limit: forces (4, 3), points
+        (4, 3) and fits (4, 3, 4), the same numbers as :meth:`_fit_each` to the bit (tested)."""
+        n, per = len(robot.FINGERS), robot.JOINTS_PER_FINGER
+        jac = np.zeros((3, model.nv))
+        A = np.empty((n, per, 3))
+        bodies = model.site_bodyid[self.tip_sites]
+        centres = data.site_xpos[self.pad_centres]
+        tau = tau_ext.reshape(n, per)
+        point = self._start_points(data, faces)
+        active = np.ones(n, dtype=bool)
+        force = np.zeros((n, 3))
+        solvers = np.zeros((n, 3, per))
+        for _ in range(2 if faces is None else 1):
+            idx = np.flatnonzero(active)
+            for f in idx:
+                mujoco.mj_jac(model, data, jac, None, point[f], int(bodies[f]))
+                A[f] = jac[:, self.finger_dofs[f]].T
+            At = np.swapaxes(A[idx], 1, 2)
+            solvers[idx] = np.linalg.solve(At @ A[idx] + self._ridge, At)
+            size = np.zeros(n)
+            for f in idx:  # matrix-vector products and norms one by one: the same rounding
+                force[f] = solvers[f] @ tau[f]
+                size[f] = float(np.linalg.norm(force[f]))
+            if faces is not None:
+                break
+            active &= size >= 1e-9
+            if not active.any():
+                break
+            point[active] = centres[active] + self.pad_radius * force[active] / size[active, None]
+        return force, point, solvers
+
+    def _fit_each(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        tau_ext: NDArray[np.float64],
+        at_limit: NDArray[np.bool_],
+        faces: NDArray[np.float64] | None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[NDArray[np.float64]]]:
+        """Step 3 finger by finger, the joints at a limit left out: forces (4, 3), points
+        (4, 3) and each finger's fit (3, k)."""
+        n, per = len(robot.FINGERS), robot.JOINTS_PER_FINGER
+        jac = np.zeros((3, model.nv))
+        force = np.zeros((n, 3))
+        point = self._start_points(data, faces)
+        solvers = []
+        for f in range(n):
+            rows = slice(per * f, per * (f + 1))
+            keep = ~at_limit[rows]
+            body = int(model.site_bodyid[self.tip_sites[f]])
+            centre = data.site_xpos[self.pad_centres[f]]
+            p = point[f]
+            fv = np.zeros(3)
+            solver = np.zeros((3, int(keep.sum())))
+            for _ in range(2):
+                mujoco.mj_jac(model, data, jac, None, p, body)
+                A = jac[:, self.finger_dofs[f]].T[keep]
+                solver = np.linalg.solve(A.T @ A + self._ridge, A.T)
+                fv = solver @ tau_ext[rows][keep]
+                size = float(np.linalg.norm(fv))
+                if size < 1e-9 or faces is not None:  # at a face the point is known: one solve
+                    break
+                p = centre + self.pad_radius * fv / size
+            force[f], point[f] = fv, p
+            solvers.append(solver)
+        return force, point, solvers
 
 
 def least_force(

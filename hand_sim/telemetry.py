@@ -97,6 +97,12 @@ class RecordingStats:
         return self.tick_seconds / self.ticks if self.ticks else 0.0
 
 
+#: Default rate (Hz of simulated time) of the overhead camera's recorded images: a 640x480
+#: render and its JPEG cost 5-9 ms each (docs/recording.md), the largest part of what recording
+#: adds to an episode; the 3D view moves at ``body_hz`` whatever this rate.
+IMAGE_HZ = 2.0
+
+
 @dataclass(frozen=True)
 class TelemetryRates:
     """Rates (Hz of simulated time; 0: never) of each kind of record. Checked when made: a
@@ -104,7 +110,7 @@ class TelemetryRates:
 
     body_hz: float = 50.0
     scalar_hz: float = 50.0
-    image_hz: float = 5.0
+    image_hz: float = IMAGE_HZ
     contact_hz: float = 10.0
 
     def __post_init__(self) -> None:

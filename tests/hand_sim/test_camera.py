@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -56,6 +57,21 @@ def test_image_shows_each_block_at_its_scene_position_and_colour(rig) -> None:
         mean = rgb[top].mean(axis=0) / 255.0
         cos = colours @ mean / (np.linalg.norm(colours, axis=1) * np.linalg.norm(mean))
         assert int(np.argmax(cos)) == i, block.name
+
+
+def test_the_skipped_skybox_pass_leaves_every_pixel_as_it_was(rig) -> None:
+    """The camera skips MuJoCo's skybox pass (a cheaper frame): the table fills the view, so
+    every pixel is some geom's and the images with the pass are the same to the bit."""
+    _, cam = rig
+    assert (cam.segmentation() >= 0).all()
+    rgb, depth = cam.rgb(), cam.depth()
+    flags = cam._renderer.scene.flags
+    flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = True
+    try:
+        np.testing.assert_array_equal(cam.rgb(), rgb)
+        np.testing.assert_array_equal(cam.depth(), depth)
+    finally:
+        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
 
 
 def test_table_edges_appear_where_the_intrinsics_project_them(rig) -> None:

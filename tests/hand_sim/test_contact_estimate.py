@@ -25,6 +25,7 @@ from hand_sim.assembly import DEFAULT_HAND, HAND_KINDS
 from hand_sim.contact_estimate import (
     DETECTION_THRESHOLD,
     ContactEstimate,
+    ContactEstimator,
     least_force,
     least_pressing,
 )
@@ -94,6 +95,32 @@ def test_the_estimate_matches_the_touch_pads_on_a_grip(hand_samples, kind: str) 
     assert compared >= 3 * 20  # at least three pads at every sample
     assert felt >= 2 * 20
     assert kind == "top" or checked_free > 0  # the lateral grasp leaves the thumb off
+
+
+def test_the_four_fingers_fitted_at_once_give_the_finger_by_finger_numbers(hand_samples) -> None:
+    """The estimate fits the four fingers in one batch when no joint is at a limit (the
+    recording asks for it at every control step): on the states of a real grip, squeeze, lift
+    and hold, its forces, contact points and fits equal the finger-by-finger ones to the bit,
+    with and without the faces' normals."""
+    _, found = reach.evaluate("square", "top", hand_samples, np.array([0.0]))
+    assert found is not None
+    free = np.zeros(len(robot.HAND_JOINTS), dtype=bool)
+    checked = 0
+
+    def check(model: mujoco.MjModel, data: mujoco.MjData, e: ContactEstimate) -> None:
+        nonlocal checked
+        est = ContactEstimator.for_model(model, "hand/")
+        outward = -e.force / np.maximum(np.linalg.norm(e.force, axis=1, keepdims=True), 1e-9)
+        for faces in (None, outward):
+            batch = est._fit_all(model, data, e.external_torque, faces)
+            each = est._fit_each(model, data, e.external_torque, free, faces)
+            for a, b in zip(batch, each, strict=True):
+                np.testing.assert_array_equal(a, np.asarray(b))
+        assert np.abs(batch[0]).max() > 1.0  # a state with force on the pads
+        checked += 1
+
+    tendon_lift(found, 0.1, check)
+    assert checked >= 20
 
 
 @pytest.fixture(scope="module")
