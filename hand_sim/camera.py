@@ -57,7 +57,10 @@ class OverheadCamera(ClosesOnExit):
         self.width, self.height = width, height
         self.camera_id = int(world.model.camera(CAMERA_NAME).id)
         ensure_gl_backend()
-        self._renderer: mujoco.Renderer | None = mujoco.Renderer(world.model, height, width)
+        # no text is drawn: the smallest font makes the renderer ~50 ms faster to set up
+        self._renderer: mujoco.Renderer | None = mujoco.Renderer(
+            world.model, height, width, font_scale=mujoco.mjtFontScale.mjFONTSCALE_50
+        )
         flags = self._renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
