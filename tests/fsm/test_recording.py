@@ -5,6 +5,7 @@ block."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,7 @@ from hand_sim.contacts import robot_contacts
 from hand_sim.errors import HandSimError, SceneError, SimulationError
 from hand_sim.recorder import read_recording
 from hand_sim.scene import load_scene
-from hand_sim.telemetry import series_names
+from hand_sim.telemetry import IMAGE_HZ, series_names
 from hand_sim.world import World
 
 CONTROL_STEPS = 10  # one 20 ms control period of 2 ms physics steps
@@ -132,7 +133,8 @@ def test_episode_entities_timelines_and_layout(tmp_path: Path, world: World) -> 
 
     # the overhead camera: a pinhole with its images under it
     assert got["/world/cameras/overhead"]["Pinhole:image_from_camera"] == 1
-    assert got["/world/cameras/overhead/rgb"]["EncodedImage:blob"] == round(0.4 * 5) + 1
+    # at IMAGE_HZ (2 Hz): the frames at multiples of its period in [0, 0.4] s
+    assert got["/world/cameras/overhead/rgb"]["EncodedImage:blob"] == _frames_due(0.4, IMAGE_HZ)
 
     # every scalar series, one row per frame
     for name in series_names():
@@ -225,6 +227,11 @@ def test_rates_are_of_simulated_time(tmp_path: Path, world: World, steps_per_tic
     )
 
 
+def _frames_due(seconds: float, rate_hz: float) -> int:
+    """Frames a rate logs over ``seconds`` from t = 0: one at each multiple of its period."""
+    return math.floor(seconds * rate_hz + 1e-9) + 1
+
+
 def test_a_rate_of_zero_logs_nothing(tmp_path: Path, world: World) -> None:
     path = tmp_path / "off.rrd"
     with EpisodeRecorder(path, world, image_rate_hz=0.0, scalar_rate_hz=0.0) as rec:
@@ -247,7 +254,7 @@ def test_file_is_complete_when_the_episode_raises(tmp_path: Path, world: World) 
     n = round(0.6 / 0.02) + 1  # all still in the column buffers when the exception came
     assert got[f"/world/bodies/{world.scene.target}"]["Transform3D:translation"] == n
     assert got["/scalars/touch/ff"]["Scalars:scalars"] == n
-    assert got["/world/cameras/overhead/rgb"]["EncodedImage:blob"] == 4
+    assert got["/world/cameras/overhead/rgb"]["EncodedImage:blob"] == _frames_due(0.6, IMAGE_HZ)
     (event,) = rows(path, "/events", "TextLog:text")
     assert event[1] == ["episode raised RuntimeError: boom"]
     assert event[0]["sim_time"] == pytest.approx(world.time)
