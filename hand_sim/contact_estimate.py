@@ -205,13 +205,13 @@ class ContactEstimator:
         uncertainty = np.zeros(n)
         lows = np.zeros(n) if least else None
         for f in range(n):
-            keep = ~at_limit[per * f : per * (f + 1)]
+            rows = slice(per * f, per * (f + 1))
+            keep = ~at_limit[rows]
             solver = solvers[f]
-            band = stuck_friction[per * f : per * (f + 1)][keep]
+            band = stuck_friction[rows][keep]
             uncertainty[f] = float(np.linalg.norm(solver, axis=0) @ band)
             if lows is not None:
                 # the stuck joints' torques without the memory's friction, +- F about that
-                rows = slice(per * f, per * (f + 1))
                 centre = tau_ext[rows][keep] + band * sliding[rows][keep]
                 lows[f] = (
                     least_force(solver, centre, band)
