@@ -257,7 +257,7 @@ class ContactEstimator:
         active = np.ones(n, dtype=bool)
         force = np.zeros((n, 3))
         solvers = np.zeros((n, 3, per))
-        for _ in range(2 if faces is None else 1):
+        for _ in range(2):
             idx = np.flatnonzero(active)
             for f in idx:
                 mujoco.mj_jac(model, data, jac, None, point[f], int(bodies[f]))
@@ -268,7 +268,7 @@ class ContactEstimator:
             for f in idx:  # matrix-vector products and norms one by one: the same rounding
                 force[f] = solvers[f] @ tau[f]
                 size[f] = float(np.linalg.norm(force[f]))
-            if faces is not None:
+            if faces is not None:  # at a face the point is known: one solve
                 break
             active &= size >= 1e-9
             if not active.any():
