@@ -43,6 +43,7 @@ from controllers.finger_geometry import (
 )
 from controllers.finger_samples import Criteria, FingerSamples
 from controllers.finger_span import FingerSpans
+from controllers.kinematic_scratch import kinematic_scratch
 from controllers.posture import solve_posture
 from controllers.reach import ReachTarget
 from hand_sim import robot
@@ -137,11 +138,11 @@ def _sampled_start(
     points: NDArray[np.float64],
     normals: NDArray[np.float64],
     prism: PerceivedPrism,
-    heights: tuple[float, float] | None,
+    heights: tuple[float, float],
     squeeze: float,
 ) -> NDArray[np.float64]:
     """``qpos`` with each finger's joints replaced by the sample that takes its contact best,
-    where a sample does; ``heights`` is the range a contact may slide in (None: it stays)."""
+    where a sample does; ``heights`` is the range the contacts may slide in."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
@@ -158,11 +159,10 @@ def _sampled_start(
     out = qpos.copy()
     adr = RobotIndices.of(model).finger_qpos
     # sliding contacts prefer the palm's height: opposed fingers then press at one height
-    prefer = float(p0[2]) if heights is not None else None
+    prefer = float(p0[2])
     for f in range(len(robot.FINGERS)):
-        span = heights if heights is not None else (points[f, 2], points[f, 2])
         q, _ = samples.best(
-            f, p0, R0, points[f], normals[f], span, prism.signed_distance, criteria, prefer
+            f, p0, R0, points[f], normals[f], heights, prism.signed_distance, criteria, prefer
         )
         if q is not None:
             out[adr[f]] = q
@@ -214,9 +214,11 @@ def check_reach(
     task cycle applies it to the controller's final contacts only). With ``slide`` each contact
     may move up or down its face (a planar contact is a vertical line on the prism's face) between
     :data:`BOTTOM_MARGIN` above the prism's bottom and :data:`TOP_MARGIN` below its top; the
-    heights taken are in the verdict's ``heights``. With ``samples`` each finger's IK starts
-    from the sampled posture that takes its contact best (:meth:`FingerSamples.best`) where one
-    does, instead of from the hand's present posture: a global search the local IK refines.
+    heights taken are in the verdict's ``heights``. With ``samples`` and ``slide`` each finger's IK
+    starts from the sampled posture that takes its contact best (:meth:`FingerSamples.best`)
+    where one does, instead of from the hand's present posture: a global search the local IK
+    refines. (Without ``slide`` a contact's height range is a single height, which no sampled
+    fingertip meets exactly, so the samples are not searched.)
     ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
     ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
     those of the shorter run (the verdict is the same). ``span_test``: without ``slide``, when a
@@ -236,12 +238,11 @@ def check_reach(
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
     # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
     # caller throws unreachable verdicts away, the verdict is taken from the start posture
-    data = mujoco.MjData(model)
+    scratch = kinematic_scratch(world, model)
+    data = scratch.data
     hopeless = span_test and not slide and _beyond_span(model, data, start, tips)
-    if samples is not None and not hopeless:
-        start = _sampled_start(
-            model, start, samples, p, n, prism, heights if slide else None, squeeze
-        )
+    if samples is not None and slide and not hopeless:
+        start = _sampled_start(model, start, samples, p, n, prism, heights, squeeze)
     sol = solve_posture(
         world,
         tips,
@@ -257,7 +258,7 @@ def check_reach(
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     data.qpos[:] = start
-    data.qpos[RobotIndices.of(model).hand_qpos] = sol.hand_q
+    data.qpos[scratch.indices.hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)
     cosines = np.einsum("fd,fd->f", pad_normals(model, data), -n)
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))

@@ -17,7 +17,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
 from controllers.ik_progress import ReachProgress
+from controllers.kinematic_scratch import kinematic_scratch
 from controllers.manipulability import ManipulabilityTask, log_manipulability
+from controllers.reduced_ik import ReducedStep
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -199,8 +201,9 @@ def solve_posture(
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
     model = world.model if model is None else model
-    idx = RobotIndices.of(model)
-    cfg = mink.Configuration(model)
+    scratch = kinematic_scratch(world, model)
+    idx = scratch.indices
+    cfg = scratch.configuration
     start = world.data.qpos if qpos is None else np.asarray(qpos, dtype=float)
     if start.shape != (model.nq,) or not np.all(np.isfinite(start)):
         raise PostureError(f"qpos must be {model.nq} finite numbers, got shape {start.shape}")
@@ -236,7 +239,7 @@ def solve_posture(
             centres[k, 2] = goal[k, 2] + pad_rise[k]
             task.set_target(mink.SE3.from_translation(centres[k]))
 
-    limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
+    limits: list[mink.Limit] = [scratch.limit]
     avoidance: list[mink.CollisionAvoidanceLimit] = []
     if avoid_collisions:
         for pairs, distance in avoidance_groups(
@@ -270,10 +273,22 @@ def solve_posture(
     def tip_error() -> NDArray[np.float64]:
         return np.linalg.norm(cfg.data.site_xpos[idx.tip_sites] - goal, axis=1)
 
+    # the fingertip (and pad-centre) steps, most of an episode's IK, on the moving joints only
+    moving = np.array(sorted(set(range(model.nv)).difference(frozen)), dtype=np.int64)
+    reduced = ReducedStep(
+        model, tips_and_pads, moving, limits, damping=IK_DAMPING, solver=QP_SOLVER
+    )
+
     def ik_step(tasks: list[mink.Task]) -> bool:
         """One damped differential-IK step of ``tasks`` within the limits, integrated in place;
         False when the QP has no solution (the limits contradict each other, e.g. a start
         already inside an avoided distance): the configuration is then left as it is."""
+        if tasks is tips_and_pads:
+            v = reduced.velocity(cfg, IK_DT)
+            if v is None:
+                return False
+            cfg.integrate_inplace(v, IK_DT)
+            return True
         try:
             v = mink.solve_ik(
                 cfg,

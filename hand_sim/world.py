@@ -109,6 +109,9 @@ class World:
         #: Called with the world after every :meth:`step` call (a controller steps once per
         #: control period): an episode's recorder and clock hook in here.
         self.on_step: Callable[[World], None] | None = None
+        #: Reusable state of the controllers' kinematic queries, by model
+        #: (:mod:`controllers.kinematic_scratch`); nothing of the simulation.
+        self.scratch: dict[object, object] = {}
 
     # --- construction ----------------------------------------------------------------------
     @classmethod
