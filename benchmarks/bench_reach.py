@@ -1,7 +1,8 @@
 """Speed and path quality of the reach controllers (section 5.2): harmonic solves on large
 grids, the 4-D coarse-reach obstacle grid (MuJoCo collision checks) and its solve at several
 resolutions, path length against the straight-line joint distance, the full coarse-reach plan,
-mink iterations per second of posture control, and fine reach.
+mink iterations per second of posture control (and of the reach test's hand step, by mink and on
+the moving joints only), and fine reach.
 
 Run: ``.venv/bin/python -m benchmarks.bench_reach [--scene clutter3] [--resolutions 10 14 18]
 [--random 8 --blocks 4]``.
@@ -24,10 +25,23 @@ from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.harmonic import ascend, solve_harmonic
 from controllers.manipulability import ManipulabilityTask
-from controllers.posture import IK_DAMPING, IK_DT, QP_SOLVER, solve_posture
+from controllers.posture import (
+    IK_DAMPING,
+    IK_DT,
+    PAD_CENTRE_COST,
+    QP_SOLVER,
+    TIP_COST,
+    _frozen_dofs,
+    _point_tasks,
+    mink_velocity,
+    moving_dofs,
+    solve_posture,
+)
 from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
+from controllers.reduced_ik import ReducedStep
 from hand_sim import clitools as cli
 from hand_sim import robot
+from hand_sim.indices import RobotIndices
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.scene import load_scene
 from hand_sim.world import World
@@ -144,12 +158,48 @@ def bench_mink(world: World) -> None:
             cfg.integrate_inplace(v, 1e-6)
         dt = time.perf_counter() - t0
         print(f"mink ({label}, nv={world.model.nv}): {MINK_ITERATIONS / dt:.0f} iterations/s")
+    bench_reach_step(world, cfg)
     t0 = time.perf_counter()
     res = solve_posture(world)
     print(
         f"posture control: {time.perf_counter() - t0:.2f} s, {res.iterations} iterations, "
         f"M {res.log_manipulability_start:.2f} -> {res.log_manipulability_end:.2f}, "
         f"max tip drift {1e3 * res.tip_error.max():.3f} mm (kinematic)"
+    )
+
+
+def bench_reach_step(world: World, cfg: mink.Configuration) -> None:
+    """The reach test's hand IK step (fingertip and pad-centre targets 1 cm off, the arm and the
+    blocks frozen) by mink and on the moving joints only (:class:`ReducedStep`)."""
+    model = world.model
+    idx = RobotIndices.of(model)
+    tips = cfg.data.site_xpos[idx.tip_sites] + 0.01
+    tasks = _point_tasks(robot.FINGERTIP_SITES, tips, TIP_COST) + _point_tasks(
+        robot.PAD_CENTRE_SITES, tips, PAD_CENTRE_COST
+    )
+    frozen = _frozen_dofs(model, idx, "hand")
+    limits = [mink.ConfigurationLimit(model)]
+    constraints = [mink.DofFreezingTask(model, dof_indices=frozen)]
+    reduced = ReducedStep(
+        model,
+        tasks,
+        moving_dofs(model, frozen),
+        limits,
+        damping=IK_DAMPING,
+        solver=QP_SOLVER,
+    )
+    rates = {}
+    for label, step in (
+        ("mink", lambda: mink_velocity(cfg, tasks, limits, constraints)),
+        ("moving joints only", lambda: reduced.velocity(cfg, IK_DT)),
+    ):
+        t0 = time.perf_counter()
+        for _ in range(MINK_ITERATIONS):
+            step()
+        rates[label] = MINK_ITERATIONS / (time.perf_counter() - t0)
+    print(
+        f"reach test's hand step (8 site tasks, nv={model.nv}, {len(reduced.free)} moving): "
+        + ", ".join(f"{k} {v:.0f} steps/s" for k, v in rates.items())
     )
 
 

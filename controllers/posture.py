@@ -132,6 +132,54 @@ def avoidance_groups(
     return groups
 
 
+def avoidance_limits(
+    model: mujoco.MjModel,
+    touchable: str | None = None,
+    *,
+    fingers_may_touch: bool = False,
+    pads_press: bool = True,
+) -> list[mink.CollisionAvoidanceLimit]:
+    """mink's collision-avoidance limits of :func:`avoidance_groups` (same arguments): each
+    group's distance kept with gain :data:`AVOID_GAIN`, engaging :data:`AVOID_DETECTION`
+    further out."""
+    return [
+        mink.CollisionAvoidanceLimit(
+            model,
+            pairs,
+            gain=AVOID_GAIN,
+            minimum_distance_from_collisions=distance,
+            collision_detection_distance=distance + AVOID_DETECTION,
+        )
+        for pairs, distance in avoidance_groups(
+            model, touchable, fingers_may_touch=fingers_may_touch, pads_press=pads_press
+        )
+    ]
+
+
+def mink_velocity(
+    cfg: mink.Configuration,
+    tasks: list[mink.Task],
+    limits: list[mink.Limit],
+    constraints: list[mink.Task],
+) -> NDArray[np.float64]:
+    """mink's differential-IK step of ``tasks`` (posture control's step, damping and solver):
+    the joint velocity; raises ``mink.NoSolutionFound`` when the program has no solution."""
+    return mink.solve_ik(
+        cfg,
+        tasks,
+        IK_DT,
+        QP_SOLVER,
+        damping=IK_DAMPING,
+        limits=limits,
+        constraints=constraints,
+    )
+
+
+def moving_dofs(model: mujoco.MjModel, frozen: list[int]) -> NDArray[np.int64]:
+    """The degrees of freedom of ``model`` not in ``frozen``, in order."""
+    return np.array(sorted(set(range(model.nv)).difference(frozen)), dtype=np.int64)
+
+
 def _point_tasks(
     sites: tuple[str, ...], points: NDArray[np.float64], cost: float
 ) -> list[mink.FrameTask]:
@@ -239,22 +287,14 @@ def solve_posture(
             centres[k, 2] = goal[k, 2] + pad_rise[k]
             task.set_target(mink.SE3.from_translation(centres[k]))
 
-    limits: list[mink.Limit] = [scratch.limit]
-    avoidance: list[mink.CollisionAvoidanceLimit] = []
-    if avoid_collisions:
-        for pairs, distance in avoidance_groups(
+    avoidance = (
+        avoidance_limits(
             model, touchable, fingers_may_touch=fingers_may_touch, pads_press=pads_press
-        ):
-            avoidance.append(
-                mink.CollisionAvoidanceLimit(
-                    model,
-                    pairs,
-                    gain=AVOID_GAIN,
-                    minimum_distance_from_collisions=distance,
-                    collision_detection_distance=distance + AVOID_DETECTION,
-                )
-            )
-    limits += avoidance
+        )
+        if avoid_collisions
+        else []
+    )
+    limits: list[mink.Limit] = [scratch.limit, *avoidance]
     fromto = np.zeros(6)
 
     def clear() -> bool:
@@ -274,9 +314,13 @@ def solve_posture(
         return np.linalg.norm(cfg.data.site_xpos[idx.tip_sites] - goal, axis=1)
 
     # the fingertip (and pad-centre) steps, most of an episode's IK, on the moving joints only
-    moving = np.array(sorted(set(range(model.nv)).difference(frozen)), dtype=np.int64)
     reduced = ReducedStep(
-        model, tips_and_pads, moving, limits, damping=IK_DAMPING, solver=QP_SOLVER
+        model,
+        tips_and_pads,
+        moving_dofs(model, frozen),
+        limits,
+        damping=IK_DAMPING,
+        solver=QP_SOLVER,
     )
 
     def ik_step(tasks: list[mink.Task]) -> bool:
@@ -290,15 +334,7 @@ def solve_posture(
             cfg.integrate_inplace(v, IK_DT)
             return True
         try:
-            v = mink.solve_ik(
-                cfg,
-                tasks,
-                IK_DT,
-                QP_SOLVER,
-                damping=IK_DAMPING,
-                limits=limits,
-                constraints=constraints,
-            )
+            v = mink_velocity(cfg, tasks, limits, constraints)
         except mink.NoSolutionFound:
             return False
         cfg.integrate_inplace(v, IK_DT)

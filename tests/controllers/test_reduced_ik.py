@@ -8,8 +8,6 @@ import numpy as np
 import pytest
 
 from controllers.posture import (
-    AVOID_DETECTION,
-    AVOID_GAIN,
     IK_DAMPING,
     IK_DT,
     PAD_CENTRE_COST,
@@ -17,7 +15,9 @@ from controllers.posture import (
     TIP_COST,
     _frozen_dofs,
     _point_tasks,
-    avoidance_groups,
+    avoidance_limits,
+    mink_velocity,
+    moving_dofs,
 )
 from controllers.reduced_ik import ReducedStep
 from hand_sim import robot
@@ -39,33 +39,13 @@ def _problem(world, joints: str, avoid: bool, qpos=None):
     if avoid:
         target = model.geom_bodyid == world.block_body_id(world.scene.target)
         touchable = model.geom(int(np.flatnonzero(target)[0])).name
-        for pairs, distance in avoidance_groups(model, touchable, fingers_may_touch=True):
-            limits.append(
-                mink.CollisionAvoidanceLimit(
-                    model,
-                    pairs,
-                    gain=AVOID_GAIN,
-                    minimum_distance_from_collisions=distance,
-                    collision_detection_distance=distance + AVOID_DETECTION,
-                )
-            )
+        limits += avoidance_limits(model, touchable, fingers_may_touch=True)
     frozen = _frozen_dofs(model, idx, joints)
     constraints = [mink.DofFreezingTask(model, dof_indices=frozen)]
     step = ReducedStep(
-        model,
-        tasks,
-        np.setdiff1d(np.arange(model.nv), frozen),
-        limits,
-        damping=IK_DAMPING,
-        solver=QP_SOLVER,
+        model, tasks, moving_dofs(model, frozen), limits, damping=IK_DAMPING, solver=QP_SOLVER
     )
     return cfg, tasks, limits, constraints, step
-
-
-def _mink_velocity(cfg, tasks, limits, constraints):
-    return mink.solve_ik(
-        cfg, tasks, IK_DT, QP_SOLVER, damping=IK_DAMPING, limits=limits, constraints=constraints
-    )
 
 
 @pytest.mark.parametrize(("joints", "avoid"), [("hand", False), ("arm+hand", True)])
@@ -77,7 +57,7 @@ def test_fifty_steps_follow_minks_steps(hovering, joints, avoid):
     moved = 0.0
     for _ in range(50):
         ours = step.velocity(cfg, IK_DT)
-        theirs = _mink_velocity(mink_cfg, tasks, limits, constraints)
+        theirs = mink_velocity(mink_cfg, tasks, limits, constraints)
         assert ours is not None
         np.testing.assert_allclose(ours, theirs, atol=1e-9)
         cfg.integrate_inplace(ours, IK_DT)
@@ -96,7 +76,7 @@ def test_a_joint_at_its_limit_is_held_there_as_mink_holds_it(hovering):
     qpos[adr] = model.jnt_range[model.jnt(robot.hand_name("ffj1")).id, 1]
     cfg, tasks, limits, constraints, step = _problem(world, "hand", False, qpos)
     ours = step.velocity(cfg, IK_DT)
-    theirs = _mink_velocity(cfg, tasks, limits, constraints)
+    theirs = mink_velocity(cfg, tasks, limits, constraints)
     np.testing.assert_allclose(ours, theirs, atol=1e-9)
     dof = model.jnt_dofadr[model.jnt(robot.hand_name("ffj1")).id]
     assert ours[dof] <= 1e-12  # the bound binds
@@ -112,7 +92,7 @@ def test_a_frozen_joint_beyond_its_limit_has_no_step_as_in_mink(hovering):
     cfg, tasks, limits, constraints, step = _problem(world, "hand", False, qpos)
     assert step.velocity(cfg, IK_DT) is None
     with pytest.raises(mink.NoSolutionFound):
-        _mink_velocity(cfg, tasks, limits, constraints)
+        mink_velocity(cfg, tasks, limits, constraints)
 
 
 def test_only_position_targets_on_sites_are_taken(hovering):
