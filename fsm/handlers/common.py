@@ -62,10 +62,11 @@ def block_site(ep: Episode) -> BlockSite:
     )
 
 
-def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
-    """The reach test's inputs for this cycle's block; ``sampled``: the hand IK starts from the
-    episode's sampled finger postures (always in a palm-pose search; in Wrench Closure's checks
-    only for a lateral grasp). A top 3-D grasp's contacts are taken at their own heights."""
+def reach_query(ep: Episode) -> ReachQuery:
+    """The reach test's inputs for this cycle's block. In a lateral grasp the contacts slide on
+    their faces and the hand IK starts from the episode's sampled finger postures (drawn when
+    first needed: the reach test searches them for sliding contacts only); a top 3-D grasp's
+    contacts are taken at their own heights."""
     lateral = slides(ep)
     return ReachQuery(
         ep.world,
@@ -73,7 +74,7 @@ def reach_query(ep: Episode, *, sampled: bool = False) -> ReachQuery:
         ep.prism,
         ep.target,
         slide=lateral,
-        samples=finger_samples(ep) if sampled or lateral else None,
+        samples=finger_samples(ep) if lateral else None,
         squeeze=squeeze_reach(ep),
         # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp
         # then takes those heights); a top 3-D grasp's fingers go to its contacts' heights
@@ -154,7 +155,7 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
     poses = lateral_poses(where, params, arcs)
     found = search_poses(
-        reach_query(ep, sampled=True),
+        reach_query(ep),
         poses,
         pinch_contacts,
         lambda qpos, contacts: plan_approach(ep, qpos, contacts),

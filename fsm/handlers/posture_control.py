@@ -142,9 +142,11 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     contacts given to the fingers, the search's label and the approach plan (None when the
     arm's own IK found the posture). A top grasp first follows the arm's IK from wrist-roll
     seeds (:func:`controllers.palm_pose.search_seeds`), then, when that finds nothing, searches
-    :func:`controllers.palm_candidates.top_poses` with sampled finger postures as IK starts; a
-    lateral grasp searches :func:`controllers.palm_candidates.lateral_poses`. Over random scenes
-    0-29 (3-5 blocks, pi) the palm-pose search took the episodes delivered from 25 to 26."""
+    :func:`controllers.palm_candidates.top_poses` (the hand IK starting from the hand's posture
+    at each pose: a top grasp's contacts do not slide, and the sampled finger starts are for
+    sliding contacts); a lateral grasp searches
+    :func:`controllers.palm_candidates.lateral_poses`. Over random scenes 0-29 (3-5 blocks, pi)
+    the palm-pose search took the episodes delivered from 25 to 26."""
     params = ep.config.palm_pose
     rotation = ep.coarse.goal.palm_rotation
     where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
@@ -182,7 +184,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     if found.found:
         return found
     # the arm's differential IK from the roll seeds found nothing: search palm poses above the
-    # block, the fingers' IK starting from sampled postures (as a lateral grasp does)
+    # block
     key = (ep.world.data.qpos.tobytes(), rotation.tobytes(), id(ep.target), id(ep.planning))
     if ep.top_poses is None or ep.top_poses[0] != key:
         ep.top_poses = (key, top_poses(where, params))
@@ -194,7 +196,7 @@ def _posture_among(ep: Episode, poses: list[PalmPose]) -> PalmPoseResult:
     approaches without collision (:func:`controllers.palm_pose.search_poses`)."""
     theta = ep.synthesis.theta
     return search_poses(
-        reach_query(ep, sampled=True),
+        reach_query(ep),
         poses,
         lambda pose: theta,
         lambda qpos, contacts: plan_approach(ep, qpos, contacts),
