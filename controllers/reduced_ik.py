@@ -15,12 +15,14 @@ log(T_bt)) and Jacobian J_k = -jlog(T_tb) Ad(T_fw) J_site,
     H = sum_k (w_k J_k)^T (w_k J_k) + (damping + sum_k lm_k |w_k g_k e_k|^2) I,
     c = sum_k (w_k J_k)^T (w_k g_k e_k),
 
-the configuration limits and any other mink limits as rows of G (mink's own
+the configuration limits (mink's :class:`~mink.ConfigurationLimit`: gain times each joint's
+distance to its limits) and any other mink limits as rows of G (their own
 ``compute_qp_inequalities``). Setting dq_frozen = 0 leaves the program on the moving joints'
-columns: the same minimiser, found by the same solver on a smaller problem (rows of a task with
-zero cost and constraint rows with no moving joint drop out; such a constraint row with h < 0
-makes the program infeasible, as it makes mink's). The numbers agree with mink's to rounding
-(tests/controllers/test_reduced_ik.py), not to the bit.
+columns: the same minimiser, found by the same solver (daqp, called directly, the moving
+joints' limits as its simple bounds) on a smaller problem. Rows of a task with zero cost, and
+constraint rows with no moving joint, drop out; such a constraint row with h < 0 (a frozen
+joint beyond its limit) makes the program infeasible, as it makes mink's. The numbers agree with
+mink's to rounding (tests/controllers/test_reduced_ik.py), not to the bit.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ class ReducedStep:
     """The differential-IK step of site ``tasks`` (:class:`mink.FrameTask` on sites, their
     targets read at each step) moving only the degrees of freedom ``free`` of ``model``, within
     ``limits`` (:class:`mink.Limit`); ``damping`` is mink's global Levenberg-Marquardt damping and
-    ``solver`` its QP solver name."""
+    ``solver`` the QP solver mink would use (this step is written for daqp's interface)."""
 
     def __init__(
         self,
@@ -59,7 +61,8 @@ class ReducedStep:
         self.free = np.asarray(free, dtype=np.int64)
         self.limits = list(limits)
         self.damping = float(damping)
-        self.solver = solver
+        if solver != "daqp":
+            raise ValueError(f"ReducedStep solves with daqp, not {solver!r}")
         self._sites = np.array([model.site(t.frame_name).id for t in self.tasks], dtype=int)
         for task in self.tasks:
             if task.frame_type != "site":
@@ -134,10 +137,9 @@ class ReducedStep:
         | None
     ):
         """daqp's constraint rows A (m, n_free), their upper and lower bounds (n_free + m,) and
-        kinds:
-        first the free joints' own bounds (mink's :class:`~mink.ConfigurationLimit`: gain times
-        the distance to each limit), then the other limits' rows ``A dq <= b``; None when a limit
-        on the frozen joints alone cannot hold (the program is infeasible)."""
+        kinds: first the free joints' own bounds (mink's :class:`~mink.ConfigurationLimit`: gain
+        times the distance to each limit), then the other limits' rows ``A dq <= b``; None when a
+        limit on the frozen joints alone cannot hold (the program is infeasible)."""
         q = cfg.q
         frozen = q[self._frozen_qpos]
         if (frozen > self._frozen_upper).any() or (frozen < self._frozen_lower).any():

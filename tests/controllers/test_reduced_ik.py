@@ -107,3 +107,12 @@ def test_only_position_targets_on_sites_are_taken(hovering):
             damping=IK_DAMPING,
             solver=QP_SOLVER,
         )
+    with pytest.raises(ValueError, match="daqp"):
+        ReducedStep(
+            world.model,
+            [],
+            np.arange(3),
+            [mink.ConfigurationLimit(world.model)],
+            damping=IK_DAMPING,
+            solver="osqp",
+        )
