@@ -262,6 +262,7 @@ def fine_reach(
     standoff: float = TOUCH_STANDOFF,
     model: mujoco.MjModel | None = None,
     touchable: str | None = None,
+    joints: str = "arm+hand",
 ) -> FineReachResult:
     """Bring the fingertips to ``targets`` on block ``target_name`` (default: the fingertips'
     current positions projected on its side faces, :func:`project_to_surface`), following each
@@ -277,7 +278,8 @@ def fine_reach(
     ``model`` (e.g. the planning model holding the perceived block,
     :mod:`controllers.planning_model`) turns on collision avoidance in the IK: the hand's links
     keep clear of the table and the
-    blocks, and only the pads may touch the geom named ``touchable``."""
+    blocks, and only the pads may touch the geom named ``touchable``. ``joints``: "arm+hand" (arm
+    and hand follow the fields) or "hand" (the arm holds its posture)."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")
     target = ReachTarget.from_world(world, target_name) if seen is None else seen
@@ -312,6 +314,7 @@ def fine_reach(
             world,
             nxt,
             optimize=False,
+            joints=joints,
             reach_iterations=IK_ITERATIONS,
             model=model,
             avoid_collisions=model is not None,

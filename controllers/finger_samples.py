@@ -131,6 +131,41 @@ class FingerSamples:
         per_finger = q.reshape(n, len(fingers), robot.JOINTS_PER_FINGER)
         return cls(per_finger, tip, pad, palmar, side, links, radius)
 
+    def posture_shares(
+        self,
+        finger: int,
+        index: NDArray[np.int64],
+        palm_position: NDArray[np.float64],
+        palm_rotation: NDArray[np.float64],
+        normal_local: NDArray[np.float64],
+        signed_distance,
+        criteria: Criteria,
+    ) -> NDArray[np.float64]:
+        """For the samples ``index`` of ``finger`` (the palm at world ``palm_position``,
+        ``palm_rotation``), each pressing a face with outward normal ``normal_local`` (3,) or
+        (len(index), 3), in the palm's frame: the worst of its pad angle, its sideways lean, how
+        far off the palmar half of the fingertip the contact lies and its links' penetration of
+        the block (``signed_distance`` of world points, negative inside), each as a share of its
+        limit in ``criteria`` (below 1: the reachability criteria of section 5.2 hold)."""
+        n = np.asarray(normal_local, dtype=float)
+
+        def along(vectors: NDArray[np.float64]) -> NDArray[np.float64]:
+            return vectors @ n if n.ndim == 1 else np.einsum("ij,ij->i", vectors, n)
+
+        angle = np.arccos(np.clip(-along(self.pad[index, finger]), -1.0, 1.0))
+        sideways = np.abs(along(self.side[index, finger]))
+        palmar = -along(self.palmar[index, finger])
+        world_links = self.links[index, finger] @ palm_rotation.T + palm_position
+        depth = (self.radius[finger] - signed_distance(world_links)).max(axis=1)
+        return np.maximum.reduce(
+            [
+                angle / criteria.max_pad_angle,
+                sideways / criteria.max_sideways,
+                (1.0 - palmar) / (1.0 - criteria.min_palmar),
+                np.maximum(depth, 0.0) / criteria.max_penetration,
+            ]
+        )
+
     def best(
         self,
         finger: int,
@@ -169,19 +204,9 @@ class FingerSamples:
         near = np.flatnonzero((off < criteria.tolerance) & (z >= heights[0]) & (z <= heights[1]))
         if near.size == 0:
             return None, np.inf
-        angle = np.arccos(np.clip(-(self.pad[near, finger] @ n_local), -1.0, 1.0))
-        sideways = np.abs(self.side[near, finger] @ n_local)
-        palmar = -(self.palmar[near, finger] @ n_local)
-        world_links = self.links[near, finger] @ R0.T + p0
-        depth = (self.radius[finger] - signed_distance(world_links)).max(axis=1)
-        score = np.maximum.reduce(
-            [
-                off[near] / criteria.tolerance,
-                angle / criteria.max_pad_angle,
-                sideways / criteria.max_sideways,
-                (1.0 - palmar) / (1.0 - criteria.min_palmar),
-                np.maximum(depth, 0.0) / criteria.max_penetration,
-            ]
+        score = np.maximum(
+            off[near] / criteria.tolerance,
+            self.posture_shares(finger, near, p0, R0, n_local, signed_distance, criteria),
         )
         cost = score.copy()
         if prefer is not None and (score < 1.0).any():

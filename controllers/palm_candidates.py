@@ -8,6 +8,7 @@ returns configurations to start from; :mod:`controllers.palm_pose` searches them
 - :func:`roll_seeds`: the present configuration with the wrist rolled in steps (a top grasp's
   first search, the arm's own IK from each);
 - :func:`lateral_arcs`: the stretches of the outline a lateral hand's pads can face;
+- :func:`face_arcs`: each contact's own face, less an inset at its ends;
 - :func:`side_contacts`: the side-face contacts a lateral pinch closes on.
 """
 
@@ -20,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.cspace import CollisionChecker
+from controllers.grasp.polygon import Polygon
 from controllers.reach import LATERAL_DEPTH, ReachTarget
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
@@ -48,6 +50,13 @@ class PalmPoseParams:
     lateral_gaps: tuple[float, ...] = (0.03, 0.035, 0.04)
     lateral_rolls: tuple[float, ...] = tuple(np.deg2rad([0.0, 10.0, -10.0]))
     lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
+    #: The palm poses a lateral pre-shape searches for contacts among the sampled finger
+    #: postures (:mod:`controllers.lateral_grasp`): gaps (m) and shifts (m) as above, with the
+    #: same rolls. Wider than the pinch's: that search is cheap where no finger posture fits (no
+    #: hand IK runs there), and ``benchmarks.hand_reachability`` finds the hand's lateral grasps
+    #: with the palm 3-30 mm from the block and the block up to 3 cm aside.
+    lateral_sampled_gaps: tuple[float, ...] = (0.015, 0.02, 0.025, 0.03, 0.035, 0.04)
+    lateral_sampled_shifts: tuple[float, ...] = (0.0, -0.008, 0.008, -0.016, 0.016, -0.024, 0.024)
     #: Side contacts stay this far (m) inside the block's extent along the approach axis, and
     #: inside the ends of the side arcs (:func:`lateral_arcs`).
     side_inset: float = 0.004
@@ -137,6 +146,9 @@ def lateral_poses(
     where: PoseSetting,
     params: PalmPoseParams = DEFAULT_PALM_POSE,
     arcs: NDArray[np.float64] | None = None,
+    *,
+    sampled: bool = False,
+    hand: NDArray[np.float64] | None = None,
 ) -> list[PalmPose]:
     """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
     has five joints), hand y up as the coarse reach put it (``coarse_rotation``, its goal palm
@@ -147,7 +159,9 @@ def lateral_poses(
     With ``arcs`` (:func:`lateral_arcs`) the gaps are counted from where the side faces the
     fingers can take begin (less ``side_inset``), when that lies beyond the nearest point: a
     block with a corner towards the arm (a pentagon's, 2.2 cm before its side faces) otherwise
-    leaves its side faces beyond the fingers' reach."""
+    leaves its side faces beyond the fingers' reach. ``sampled``: the gaps and shifts of the
+    sampled-contact search (``lateral_sampled_gaps``, ``lateral_sampled_shifts``); ``hand``:
+    the hand's posture instead of the pinch (the one that took a sampled pre-shape's contacts)."""
     world, target, coarse_rotation = where.world, where.target, where.coarse_rotation
     hand_adr = robot.hand_qpos_addresses(world.model)
     arm_adr, checker, q_arm = where.arm_start()
@@ -162,10 +176,12 @@ def lateral_poses(
             target.polygon.locate(np.ravel(arcs)).point, target.position_xy, target.yaw
         )
         near = max(near, float(((ends - centre[:2]) @ axis[:2]).min()) - params.side_inset)
+    gaps = params.lateral_sampled_gaps if sampled else params.lateral_gaps
+    shifts = params.lateral_sampled_shifts if sampled else params.lateral_shifts
     poses = []
-    for gap in params.lateral_gaps:
+    for gap in gaps:
         for roll in params.lateral_rolls:
-            for shift in params.lateral_shifts:
+            for shift in shifts:
                 palm = centre + (near - gap) * axis + shift * np.cross(up, axis)
                 # the approach axis through the shifted palm is radial, as the arm has it
                 radial = np.array([*(palm[:2] - base), 0.0])
@@ -177,7 +193,7 @@ def lateral_poses(
                     continue
                 qpos = world.data.qpos.copy()
                 qpos[arm_adr] = arm.q
-                qpos[hand_adr] = np.asarray(params.lateral_pinch)
+                qpos[hand_adr] = np.asarray(params.lateral_pinch if hand is None else hand)
                 label = (
                     f"palm {gap * 100:.1f} cm from the block, {shift * 100:+.1f} cm aside, "
                     f"rolled {np.degrees(roll):+.0f} deg"
@@ -356,3 +372,19 @@ def side_contacts(
         local = origin + best * ray - centre
         theta[f] = np.arctan2(local[1], local[0]) - target.yaw
     return np.mod(theta + np.pi, 2 * np.pi) - np.pi
+
+
+def face_arcs(polygon: Polygon, theta: NDArray[np.float64], inset: float) -> NDArray[np.float64]:
+    """Each contact's own face as a contact-coordinate interval ``(lo, hi)`` (rad,
+    counter-clockwise), its ends ``inset`` (m; at most a quarter of the face) in from the
+    face's vertices: where a lateral grasp whose contacts were chosen among the hand's sampled
+    postures (:mod:`controllers.lateral_grasp`) keeps each finger."""
+    v = polygon.vertices
+    edges = polygon.locate(np.asarray(theta, dtype=float)).edge
+    out = np.empty((len(edges), 2))
+    for i, k in enumerate(edges):
+        a, b = v[k], v[(k + 1) % len(v)]
+        length = float(np.linalg.norm(b - a))
+        step = min(inset, 0.25 * length) * (b - a) / length
+        out[i] = polygon.theta_of(a + step), polygon.theta_of(b - step)
+    return out

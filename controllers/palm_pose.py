@@ -195,6 +195,7 @@ def search_poses(
     tries: int,
     reachable_only: bool,
     skip: int = 0,
+    heights_of: Callable[[PalmPose], NDArray[np.float64]] | None = None,
 ) -> PalmPoseResult:
     """Search the palm ``poses`` (:func:`controllers.palm_candidates.lateral_poses`,
     :func:`~controllers.palm_candidates.top_poses`) group by group (a lateral grasp's palm
@@ -205,13 +206,15 @@ def search_poses(
     (a plan, or None when the approach collides); of several in one group, the one with the
     lowest ``HandReach.load``. Without ``reachable_only``, when none reaches, the lowest load
     that approaches. ``skip`` passes over that many acceptable poses first (a regrasp tries the
-    next)."""
+    next). ``heights_of(pose)``: the contacts' world heights at that pose (contacts taken
+    where given, not slid; the hand IK from the pose's own hand posture)."""
     world = query.world
     hand_adr = robot.hand_qpos_addresses(world.model)
     tried = []
     for _, group in itertools.groupby(enumerate(poses), key=lambda item: item[1].group):
         found = []
         for index, pose in group:
+            fixed = heights_of is not None
             contacts, reach = reachable_contacts(
                 world,
                 query.prism,
@@ -221,10 +224,10 @@ def search_poses(
                 qpos=pose.qpos,
                 tries=tries,
                 check_spacing=False,
-                slide=query.slide,
-                samples=query.samples,
+                slide=query.slide and not fixed,
+                samples=None if fixed else query.samples,
                 squeeze=query.squeeze,
-                heights=query.heights,
+                heights=heights_of(pose) if fixed else query.heights,
                 give_up=reachable_only,  # else the loads of unreachable poses rank them
                 span_test=reachable_only,  # unreachable verdicts' reasons are not reported
             )

@@ -50,6 +50,14 @@ class TaskConfig:
     #: Wrench Closure, although all nine hold and are delivered with the squeeze's 3-D shares
     #: (docs/task_cycle.md, "The lateral grasp in 3-D").
     lateral_grasp_3d: bool = False
+    #: Where a lateral pre-shape's contacts come from when the pinch pre-shape's (the points
+    #: across the approach axis from its fingertips, on the faces a lateral hand's pads can take)
+    #: are out of the hand's reach at every palm pose: "sampled", the lowest-S_G combination of
+    #: contacts the hand's sampled finger postures take at palm poses beside the block
+    #: (controllers.lateral_grasp; each contact then stays on its own face); "pinch", the
+    #: pinch's pose of least reach load all the same (the grasp before; docs/task_cycle.md,
+    #: "Lateral contacts from the hand's own reach").
+    lateral_contacts: str = "pinch"
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only

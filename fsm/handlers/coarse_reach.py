@@ -13,7 +13,8 @@ from fsm.states import Failure, State, Step, TaskFailedError
 def coarse_reach(ep: Episode) -> Step:
     """Coarse Reach: a harmonic path in the arm's c-space to above (top) or beside (lateral)
     the perceived block; the path determines the approach unless one is forced. A lateral
-    approach then takes the pinch pre-shape at a palm pose beside the block."""
+    approach then takes its pre-shape at a palm pose beside the block
+    (:func:`fsm.handlers.common.lateral_preshape`)."""
     approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
     plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     if not plan.found:
@@ -25,7 +26,7 @@ def coarse_reach(ep: Episode) -> Step:
     preshape = ""
     if plan.approach == "lateral":
         done = lateral_preshape(ep)
-        preshape = "; " + (done or "no pinch pre-shape (none is approached without collision)")
+        preshape = "; " + (done or "no pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
         f"{plan.approach} approach: {plan.choice}; touched {touched} on the way{preshape}",

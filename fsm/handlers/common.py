@@ -5,24 +5,29 @@ lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
+from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
+from controllers.lateral_grasp import DEFAULT_SAMPLING, SampledGrasp, sampled_lateral_grasp
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
     PalmPose,
     PoseSetting,
+    face_arcs,
     lateral_arcs,
     lateral_poses,
     robot_base_xy,
     side_contacts,
 )
-from controllers.palm_pose import ReachQuery, search_poses
+from controllers.palm_pose import PalmPoseResult, ReachQuery, search_poses
 from fsm.context import Episode
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
@@ -44,8 +49,13 @@ def finger_samples(ep: Episode) -> FingerSamples:
 
 
 def squeeze_reach(ep: Episode) -> float:
-    """How far past its contact each fingertip must reach in this cycle's grasp."""
-    return ep.config.lateral_squeeze_reach if slides(ep) else SQUEEZE_REACH
+    """How far past its contact each fingertip must reach in this cycle's grasp: a lateral
+    grasp from sampled contacts asks ``reach_margin`` more (the pre-shape's search asked it, so
+    every later reach test asks what that one passed)."""
+    if not slides(ep):
+        return SQUEEZE_REACH
+    sampled = ep.preshape_hand_q is not None
+    return ep.config.lateral_squeeze_reach + (DEFAULT_SAMPLING.reach_margin if sampled else 0.0)
 
 
 def block_site(ep: Episode) -> BlockSite:
@@ -65,21 +75,41 @@ def block_site(ep: Episode) -> BlockSite:
 def reach_query(ep: Episode) -> ReachQuery:
     """The reach test's inputs for this cycle's block. In a lateral grasp the contacts slide on
     their faces and the hand IK starts from the episode's sampled finger postures (drawn when
-    first needed: the reach test searches them for sliding contacts only); a top 3-D grasp's
-    contacts are taken at their own heights."""
+    first needed: the reach test searches them for sliding contacts only), unless the pre-shape's
+    contacts were sampled: those are taken at their heights; a top 3-D grasp's contacts are
+    taken at their own heights."""
     lateral = slides(ep)
+    sampled = lateral and ep.preshape_arcs is not None and ep.preshape_contacts is not None
+    # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp then
+    # takes those heights), but keep the heights of sampled pre-shape contacts (each finger on
+    # its own face, where its sampled posture took it); a top 3-D grasp's fingers go to its
+    # contacts' heights
+    if sampled:
+        heights = ep.preshape_contacts.points[:, 2].copy()
+    else:
+        heights = None if lateral else contact_heights(ep)
     return ReachQuery(
         ep.world,
         ep.planning,
         ep.prism,
         ep.target,
-        slide=lateral,
+        slide=lateral and not sampled,
         samples=finger_samples(ep) if lateral else None,
         squeeze=squeeze_reach(ep),
-        # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp
-        # then takes those heights); a top 3-D grasp's fingers go to its contacts' heights
-        heights=None if lateral else contact_heights(ep),
+        heights=heights,
     )
+
+
+def reach_start(ep: Episode) -> NDArray[np.float64] | None:
+    """Where a reach test of this cycle starts its hand IK: the world's configuration with the
+    hand in the posture that took the sampled pre-shape's contacts (a lateral hand at the edge of
+    its workspace: from the hand's present posture the IK stalls millimetres short), or None
+    (the world's configuration)."""
+    if not slides(ep) or ep.preshape_hand_q is None:
+        return None
+    qpos = ep.world.data.qpos.copy()
+    qpos[robot.hand_qpos_addresses(ep.world.model)] = ep.preshape_hand_q
+    return qpos
 
 
 def contact_heights(ep: Episode) -> NDArray[np.float64] | None:
@@ -126,15 +156,96 @@ def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np
     return np.array([min(arcs, key=lambda arc: distance(float(t), arc)) for t in theta])
 
 
+def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each lateral contact's arc (n, 2): its own face when the pre-shape's contacts were
+    sampled (``ep.preshape_arcs``), else its side's (:func:`arcs_of` of :func:`side_arcs`)."""
+    if ep.preshape_arcs is not None and len(ep.preshape_arcs) == len(theta):
+        return ep.preshape_arcs
+    return arcs_of(side_arcs(ep), theta)
+
+
 def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
-    the surface points nearest the fingertips of the pinch pre-shape there (kept a pad spacing
-    apart; :func:`controllers.palm_pose.search_poses` over
-    :func:`controllers.palm_candidates.lateral_poses`); the hand pre-shapes outside those points
-    and the palm moves there along its approach axis (``skip``: the next pose). The contacts, when
-    the hand reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the grasp
-    controller. Returns what was done, for the log, or None when no pose is approached without
-    collision."""
+    its contacts (:func:`controllers.palm_pose.search_poses`), the hand then shaped outside them
+    and the palm moved there along its approach axis (``skip``: the next pose). First the pinch
+    pre-shape's contacts (the surface points nearest its fingertips, kept a pad spacing apart on
+    the side arcs). When no pose reaches those and ``config.lateral_contacts == "sampled"``, the
+    lowest-S_G contacts the hand's sampled finger postures take at a pose
+    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, over
+    :func:`controllers.palm_candidates.lateral_poses`' wider set), each kept on its own face
+    afterwards (``ep.preshape_arcs``); when none is found either, the pinch's pose of least
+    reach load. The contacts, when the hand reaches them there, are kept
+    (``ep.preshape_contacts``) for Fine Reach and the grasp controller. Returns what was done,
+    for the log, or None when no pose is approached without collision."""
+    ep.preshape_contacts = None
+    ep.preshape_arcs = ep.preshape_hand_q = None
+    pinch = _pinch_search(ep, skip)
+    reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
+    if not reached and ep.config.lateral_contacts == "sampled":
+        done = _sampled_preshape(ep, skip)
+        if done is not None:
+            return done
+    if not pinch.found:
+        return None
+    approach(block_site(ep), pinch.approach)
+    if reached:
+        ep.preshape_contacts = pinch.contacts
+    return f"pinch pre-shape, {pinch.label} (reach load {pinch.load:.2f})"
+
+
+def _sampled_preshape(ep: Episode, skip: int) -> str | None:
+    """:func:`lateral_preshape` from sampled contacts; None when no pose has a sampled grasp
+    that the hand reaches and approaches without collision."""
+    params = ep.config.palm_pose
+    # the fingers must reach further than the lateral squeeze alone: the arm lands millimetres
+    # off the searched posture (the servos' tracking) and the contacts stay within reach
+    margin = DEFAULT_SAMPLING.reach_margin
+    query = dataclasses.replace(reach_query(ep), squeeze=squeeze_reach(ep) + margin)
+    where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
+    hand_adr = robot.hand_qpos_addresses(ep.world.model)
+    pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
+    grasps: dict[int, SampledGrasp] = {}
+    poses: list[PalmPose] = []
+    for pose in lateral_poses(where, params, side_arcs(ep), sampled=True):
+        grasp = sampled_lateral_grasp(
+            ep.planning,
+            pose.qpos,
+            query.samples,
+            query.prism,
+            ep.target.polygon,
+            pose_xy,
+            query.squeeze,
+        )
+        if grasp is None or grasp.s_g > SUCCESS_THRESHOLD:
+            continue  # only a start that is already a grasp (Eq. 13)
+        qpos = pose.qpos.copy()
+        qpos[hand_adr] = grasp.hand_q
+        shaped = PalmPose(qpos, pose.group, f"{pose.label}, sampled contacts S_G {grasp.s_g:.3f}")
+        grasps[id(shaped)] = grasp
+        poses.append(shaped)
+    if not poses:
+        return None
+    found = search_poses(
+        query,
+        poses,
+        lambda pose: grasps[id(pose)].theta,
+        lambda qpos, contacts: plan_approach(ep, qpos, contacts),
+        tries=1,
+        reachable_only=True,
+        skip=skip,
+        heights_of=lambda pose: grasps[id(pose)].points[:, 2],
+    )
+    if not found.found:
+        return None
+    approach(block_site(ep), found.approach)
+    ep.preshape_contacts = found.contacts
+    ep.preshape_arcs = face_arcs(ep.target.polygon, found.contacts.theta, params.side_inset)
+    ep.preshape_hand_q = found.hand_q
+    return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})"
+
+
+def _pinch_search(ep: Episode, skip: int) -> PalmPoseResult:
+    """The pinch pre-shape's palm-pose search of :func:`lateral_preshape` (not carried out)."""
     base = robot_base_xy(ep.world)
     params = ep.config.palm_pose
     arcs = side_arcs(ep)
@@ -151,10 +262,9 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
             arcs_of(arcs, theta),
         )
 
-    ep.preshape_contacts = None
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
     poses = lateral_poses(where, params, arcs)
-    found = search_poses(
+    return search_poses(
         reach_query(ep),
         poses,
         pinch_contacts,
@@ -163,9 +273,3 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
         reachable_only=False,
         skip=skip,
     )
-    if not found.found:
-        return None
-    approach(block_site(ep), found.approach)
-    if found.reach is not None and found.reach.reachable:
-        ep.preshape_contacts = found.contacts
-    return f"pinch pre-shape, {found.label} (reach load {found.load:.2f})"

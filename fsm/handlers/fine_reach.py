@@ -10,7 +10,7 @@ from controllers.grasp.session import keep_contacts
 from controllers.hand_reach import CONTACT_SEPARATION
 from controllers.planning_model import PERCEIVED_GEOM
 from fsm.context import Episode
-from fsm.handlers.common import arcs_of, side_arcs, slides
+from fsm.handlers.common import contact_arcs, slides
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
@@ -32,8 +32,8 @@ def fine_reach_state(ep: Episode) -> Step:
     if slides(ep) and ep.preshape_contacts is not None:
         # the lateral pre-shape's contacts, which the reach test passed at this palm pose
         theta = ep.preshape_contacts.theta.copy()
-    # a lateral hand's contacts stay on the side faces it can take (its side's arc)
-    arcs = arcs_of(side_arcs(ep), theta) if slides(ep) else None
+    # a lateral hand's contacts stay on the faces it can take (its side's arc, or its own face)
+    arcs = contact_arcs(ep, theta) if slides(ep) else None
     theta = keep_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS, arcs)
     spread = contact_targets(ep.target, theta)
     z = np.clip(tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH)
@@ -49,6 +49,8 @@ def fine_reach_state(ep: Episode) -> Step:
         standoff=config.fine_reach_standoff,
         model=ep.planning,
         touchable=PERCEIVED_GEOM,
+        # a sampled lateral pre-shape's palm pose was chosen for its contacts: the arm holds it
+        joints="hand" if slides(ep) and ep.preshape_hand_q is not None else "arm+hand",
     )
     worst = float(result.tip_error.max())
     if not result.reached and worst > config.fine_reach_give_up:

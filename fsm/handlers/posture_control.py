@@ -31,6 +31,11 @@ def posture_control(ep: Episode) -> Step:
     virtual contacts within the fingers' reach (from Wrench Closure), never touching anything
     but the block's surface with the pads (collision avoidance in the perceived world)."""
     world = ep.world
+    if ep.posture_mode == "hold" and ep.preshape_hand_q is not None and slides(ep):
+        # a sampled lateral pre-shape's palm pose was chosen for its contacts, at the edge of
+        # the fingers' workspace: raising the manipulability with the tips held moves the palm
+        # off it and the contacts out of reach (docs/task_cycle.md)
+        return Step(State.WRENCH_CLOSURE, "palm held where the sampled pre-shape put it")
     if ep.posture_mode == "hold":
         sol = solve_posture(
             world,
@@ -151,7 +156,8 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     rotation = ep.coarse.goal.palm_rotation
     where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
     if slides(ep):
-        return _posture_among(ep, lateral_poses(where, params, side_arcs(ep)))
+        poses = lateral_poses(where, params, side_arcs(ep), hand=ep.preshape_hand_q)
+        return _posture_among(ep, poses)
     query = reach_query(ep)
     theta = ep.synthesis.theta
 

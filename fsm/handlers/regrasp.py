@@ -21,7 +21,7 @@ def regrasp_or_fail(
     fingertip was held off its surface point; from Grasp Object, a finger missed the block as
     the hand closed): start again from Fine Reach with the hand
     turned (top grasp: the wrist rolled by the next of ``config.regrasp_rolls``) or moved
-    (lateral: the pinch pre-shape at the next palm pose beside the block,
+    (lateral: the pre-shape at the next palm pose beside the block,
     :func:`fsm.handlers.common.lateral_preshape`), so the grasp controller starts from other
     contacts; after ``config.max_regrasps``, or with no other palm pose or wrist turn to
     regrasp from, fail with ``failure`` (the reason the regrasp was asked for) and the reason."""
@@ -36,7 +36,7 @@ def regrasp_or_fail(
             f"retries: {reason}",
         )
     if slides(ep):
-        # lateral: the pinch pre-shape at the next palm pose beside the block
+        # lateral: the pre-shape at the next palm pose beside the block
         record.regrasps += 1
         done = lateral_preshape(ep, skip=record.regrasps)
         if done is None:

@@ -21,7 +21,7 @@ from controllers.hand_reach import (
     reachable_contacts,
 )
 from fsm.context import Episode
-from fsm.handlers.common import arcs_of, contact_points, reach_query, side_arcs, slides
+from fsm.handlers.common import contact_arcs, contact_points, reach_query, reach_start, slides
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
@@ -47,7 +47,7 @@ def synthesis_for(
     if slides(ep):
         # a lateral hand takes only the faces beside its approach axis: each contact stays on
         # its side's arc; in 3-D at the height its finger takes (the hand's shape sets it)
-        arcs = arcs_of(side_arcs(ep), np.asarray(theta, dtype=float))
+        arcs = contact_arcs(ep, np.asarray(theta, dtype=float))
         lateral_top = height - TOP_MARGIN
         if (
             ep.options.grasp_model != "3d"
@@ -130,6 +130,7 @@ def wrench_closure(ep: Episode) -> Step:
             query.target,
             syn.theta,
             model=query.planning,
+            qpos=reach_start(ep),
             check_spacing=syn.done,
             slide=query.slide,
             samples=query.samples,
@@ -212,10 +213,12 @@ def _remember_if_reachable(ep: Episode) -> None:
         query.target,
         syn.theta,
         model=query.planning,
+        qpos=reach_start(ep),
         check_spacing=False,
         slide=query.slide,
         samples=query.samples,
         squeeze=query.squeeze,
+        heights=query.heights,
     )
     if reach.reachable:
         ep.last_reachable = (syn.theta, contacts, reach, syn.steps)

@@ -1,0 +1,255 @@
+"""A lateral grasp the hand can take, chosen by S_G among its sampled finger postures (section
+5.2: Fine Reach and Wrench Closure after a lateral approach; docs/task_cycle.md, "Lateral
+contacts from the hand's own reach").
+
+A lateral hand faces the block along the arm's radius with its finger row horizontal; which
+points of the block's outline its fingers can press with their pads depends on the block's
+width and turn, and a fixed pinch pre-shape's fingertips, projected across the approach axis,
+land on points the hand cannot take on most blocks that are not the rectangle it was found on.
+Here, at a palm pose beside the block, every sampled posture of each finger
+(:class:`controllers.finger_samples.FingerSamples`) whose fingertip lies ``squeeze`` inside a
+side face of the perceived prism and that meets the reachability criteria of
+:mod:`controllers.hand_reach` (pad facing the face, not sideways, the contact on the palmar half,
+no link in the block) gives that finger a candidate contact. Of the combinations of one
+candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart in the
+plane, as the planar grasp controller keeps them), the one with the lowest S_G (Eq. 13, planar,
+on the unit-moment polygon, section 3.4) is the grasp; the reach test then confirms it with the
+hand's own inverse kinematics.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.finger_geometry import PerceivedPrism
+from controllers.finger_samples import Criteria, FingerSamples
+from controllers.grasp.polygon import Polygon
+from controllers.grasp.score import grasp_score
+from controllers.hand_reach import (
+    BOTTOM_MARGIN,
+    CONTACT_SEPARATION,
+    MAX_LINK_PENETRATION,
+    MAX_PAD_ANGLE,
+    MAX_PAD_SIDEWAYS,
+    MIN_PAD_PALMAR,
+    TOP_MARGIN,
+)
+from hand_sim import robot
+
+
+@dataclass(frozen=True)
+class LateralSampling:
+    """How the candidates are found and combined."""
+
+    #: A sampled fingertip counts when it lies up to ``tolerance`` (m) beyond its place
+    #: ``squeeze`` inside a side face, or ``shortfall`` short of it: the reach test's hand IK then
+    #: brings it there (a finger that reaches further takes the contact with room to spare; one
+    #: short of it is at the edge of its workspace, where the IK stalls millimetres away).
+    tolerance: float = 0.006
+    shortfall: float = 0.001
+    #: Candidate contacts stay this far (m) from a face's vertical edges.
+    edge_inset: float = 0.004
+    #: Every finger link of a candidate stays this far (m) above the table: a lateral hand's
+    #: thumb reaches down towards it (single_irregular_pentagon: the thumb's links met the
+    #: table and its touch guard stopped it in Fine Reach).
+    table_clearance: float = 0.01
+    #: Candidates of one finger on one face closer than this (m) along it count as one (the
+    #: best-scored sample of the bin is kept).
+    bin_length: float = 0.005
+    #: At most this many candidates per finger, and per finger and face, are combined.
+    per_finger: int = 10
+    per_face: int = 4
+    #: Combinations scored by S_G's program: the ones whose unit normal forces leave the least
+    #: net wrench.
+    scored: int = 30
+    #: A candidate's worst criterion share (pad angle, sideways lean, palmar side, link
+    #: penetration, as shares of the reach test's limits) is below this: room for the hand IK,
+    #: which then moves the fingertip onto the contact exactly.
+    max_share: float = 1.0
+    #: The pre-shape's reach test asks each fingertip to reach this much (m) further past its
+    #: contact than the grasp does: room for the arm to land off the searched posture.
+    reach_margin: float = 0.0
+
+
+DEFAULT_SAMPLING = LateralSampling()
+
+
+@dataclass(frozen=True, eq=False)
+class SampledGrasp:
+    """A lateral grasp found among the sampled finger postures: each finger's contact
+    coordinate (``theta``, rad, order ff, mf, rf, th), world contact point, the hand's joints
+    (the four samples), S_G of the contacts and the worst criterion share of the samples
+    (``load``, below 1)."""
+
+    theta: NDArray[np.float64]
+    points: NDArray[np.float64]
+    hand_q: NDArray[np.float64]
+    s_g: float
+    load: float
+
+
+@dataclass(frozen=True, eq=False)
+class _Candidates:
+    """One finger's candidate contacts: sample index, edge, position along the edge (m),
+    contact coordinate (rad), world point (k, 3) and criterion share."""
+
+    sample: NDArray[np.int64]
+    edge: NDArray[np.int64]
+    along: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    point: NDArray[np.float64]
+    share: NDArray[np.float64]
+
+
+def _object_frame(
+    position_xy: NDArray[np.float64], yaw: float, xy: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """World (k, 2) points ``xy`` in the object frame of a block at ``position_xy``, ``yaw``."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = xy - position_xy
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def finger_candidates(
+    samples: FingerSamples,
+    finger: int,
+    palm: tuple[NDArray[np.float64], NDArray[np.float64]],
+    prism: PerceivedPrism,
+    polygon: Polygon,
+    pose_xy: tuple[NDArray[np.float64], float],
+    criteria: Criteria,
+    params: LateralSampling = DEFAULT_SAMPLING,
+) -> _Candidates:
+    """The contacts ``finger`` can take with the palm at ``palm`` (world position, rotation):
+    its samples whose fingertip lies ``criteria.squeeze`` inside a side face of the perceived
+    block (``polygon`` at ``pose_xy`` = (centroid, yaw), standing as ``prism``), between the
+    reach test's height margins and ``params.edge_inset`` in from the face's ends, and that meet
+    the reachability criteria; one per ``params.bin_length`` of each face, the best-scored."""
+    p0, R0 = palm
+    centre, yaw = pose_xy
+    tips = samples.tip[:, finger] @ R0.T + p0
+    inside = -prism.signed_distance(tips)
+    low, high = prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN
+    near = np.flatnonzero(
+        (inside >= criteria.squeeze - params.shortfall)
+        & (inside <= criteria.squeeze + params.tolerance)
+        & (tips[:, 2] >= low)
+        & (tips[:, 2] <= high)
+    )
+    local = _object_frame(centre, yaw, tips[near, :2])
+    normals = np.column_stack([np.cos(polygon.normal_angle), np.sin(polygon.normal_angle)])
+    edge = np.argmax(local @ normals.T - polygon.offset, axis=1)
+    v = polygon.vertices
+    start, end = v[edge], np.roll(v, -1, axis=0)[edge]
+    length = np.linalg.norm(end - start, axis=1)
+    foot = local - ((local * normals[edge]).sum(1) - polygon.offset[edge])[:, None] * normals[edge]
+    along = ((foot - start) * (end - start)).sum(1) / length
+    keep = (along >= params.edge_inset) & (along <= length - params.edge_inset)
+    near, edge, foot, along = near[keep], edge[keep], foot[keep], along[keep]
+    c, s = np.cos(yaw), np.sin(yaw)
+    n_world = np.column_stack(
+        [c * normals[edge, 0] - s * normals[edge, 1], s * normals[edge, 0] + c * normals[edge, 1]]
+    )
+    n_local = np.column_stack([n_world, np.zeros(len(near))]) @ R0
+    off = np.abs(inside[near] - criteria.squeeze) / params.tolerance
+    share = np.maximum(
+        off,
+        samples.posture_shares(finger, near, p0, R0, n_local, prism.signed_distance, criteria),
+    )
+    links = samples.links[near, finger] @ R0.T + p0
+    above = (links[..., 2] - samples.radius[finger]).min(axis=1) - prism.bottom
+    good = (share < params.max_share) & (above >= params.table_clearance)
+    near, edge, foot, along, share = near[good], edge[good], foot[good], along[good], share[good]
+    # the best sample of each bin along each face, the bins best-first
+    order = np.lexsort((share, np.floor(along / params.bin_length), edge))
+    bins = np.column_stack([edge, np.floor(along / params.bin_length)])[order]
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = np.any(bins[1:] != bins[:-1], axis=1)
+    pick = order[first]
+    pick = pick[np.argsort(share[pick], kind="stable")]
+    chosen: list[int] = []
+    per_edge: dict[int, int] = {}
+    for i in pick:
+        k = int(edge[i])
+        if per_edge.get(k, 0) < params.per_face and len(chosen) < params.per_finger:
+            chosen.append(int(i))
+            per_edge[k] = per_edge.get(k, 0) + 1
+    idx = np.asarray(chosen, dtype=np.int64)
+    world_xy = foot[idx] @ np.array([[c, s], [-s, c]]) + centre
+    point = np.column_stack([world_xy, tips[near[idx], 2]])
+    theta = np.arctan2(foot[idx, 1], foot[idx, 0])
+    return _Candidates(near[idx], edge[idx], along[idx], theta, point, share[idx])
+
+
+def _pad_centres(polygon: Polygon, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Object-frame pad centres (..., 2): one pad radius out from each contact."""
+    frames = polygon.locate(theta)
+    return frames.point + robot.PAD_RADIUS * frames.normal
+
+
+def sampled_lateral_grasp(
+    model: mujoco.MjModel,
+    qpos: NDArray[np.float64],
+    samples: FingerSamples,
+    prism: PerceivedPrism,
+    polygon: Polygon,
+    pose_xy: tuple[NDArray[np.float64], float],
+    squeeze: float,
+    params: LateralSampling = DEFAULT_SAMPLING,
+) -> SampledGrasp | None:
+    """The lowest-S_G grasp of one sampled candidate contact per finger
+    (:func:`finger_candidates`) with the arm at ``qpos``'s posture (``model``, the planning
+    model), the pads apart; None when a finger has no candidate or no combination fits."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    palm_id = model.body(robot.hand_name(robot.PALM_BODY)).id
+    palm = (data.xpos[palm_id].copy(), data.xmat[palm_id].reshape(3, 3).copy())
+    criteria = Criteria(
+        params.tolerance,
+        MAX_PAD_ANGLE,
+        MAX_PAD_SIDEWAYS,
+        MIN_PAD_PALMAR,
+        MAX_LINK_PENETRATION,
+        squeeze,
+    )
+    per = [
+        finger_candidates(samples, f, palm, prism, polygon, pose_xy, criteria, params)
+        for f in range(len(robot.FINGERS))
+    ]
+    if any(len(c.sample) == 0 for c in per):
+        return None
+    combos = np.array(list(itertools.product(*(range(len(c.sample)) for c in per))))
+    theta = np.column_stack([c.theta[combos[:, f]] for f, c in enumerate(per)])
+    pads = _pad_centres(polygon, theta)
+    fits = np.ones(len(combos), dtype=bool)
+    for i, j in itertools.combinations(range(theta.shape[1]), 2):
+        fits &= np.linalg.norm(pads[:, i] - pads[:, j], axis=1) >= CONTACT_SEPARATION
+    combos, theta = combos[fits], theta[fits]
+    if len(combos) == 0:
+        return None
+    unit = polygon.unit_moment()
+    frames = unit.locate(theta)
+    force = -frames.normal
+    moment = frames.point[..., 0] * force[..., 1] - frames.point[..., 1] * force[..., 0]
+    net = np.linalg.norm(np.column_stack([force.sum(1), moment.sum(1)]), axis=1)
+    best: tuple[float, float, int] | None = None
+    for k in np.argsort(net, kind="stable")[: params.scored]:
+        score = grasp_score(frames.point[k], frames.normal[k])
+        if not score.feasible:
+            continue
+        load = max(float(c.share[combos[k, f]]) for f, c in enumerate(per))
+        key = (float(score.s_g), load, int(k))
+        if best is None or key < best:
+            best = key
+    if best is None:
+        return None
+    s_g, load, k = best
+    hand = np.concatenate([samples.q[c.sample[combos[k, f]], f] for f, c in enumerate(per)])
+    points = np.stack([c.point[combos[k, f]] for f, c in enumerate(per)])
+    return SampledGrasp(theta[k].copy(), points, hand, s_g, load)
