@@ -40,6 +40,7 @@ from controllers.hand_reach import (
     TOP_MARGIN,
 )
 from hand_sim import robot
+from hand_sim.geometry import place_polygon, rotation_2d
 
 
 @dataclass(frozen=True)
@@ -71,9 +72,6 @@ class LateralSampling:
     #: penetration, as shares of the reach test's limits) is below this: room for the hand IK,
     #: which then moves the fingertip onto the contact exactly.
     max_share: float = 1.0
-    #: The pre-shape's reach test asks each fingertip to reach this much (m) further past its
-    #: contact than the grasp does: room for the arm to land off the searched posture.
-    reach_margin: float = 0.0
 
 
 DEFAULT_SAMPLING = LateralSampling()
@@ -106,15 +104,6 @@ class _Candidates:
     share: NDArray[np.float64]
 
 
-def _object_frame(
-    position_xy: NDArray[np.float64], yaw: float, xy: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """World (k, 2) points ``xy`` in the object frame of a block at ``position_xy``, ``yaw``."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    d = xy - position_xy
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
-
-
 def finger_candidates(
     samples: FingerSamples,
     finger: int,
@@ -141,7 +130,7 @@ def finger_candidates(
         & (tips[:, 2] >= low)
         & (tips[:, 2] <= high)
     )
-    local = _object_frame(centre, yaw, tips[near, :2])
+    local = (tips[near, :2] - centre) @ rotation_2d(yaw)  # world -> object frame
     normals = np.column_stack([np.cos(polygon.normal_angle), np.sin(polygon.normal_angle)])
     edge = np.argmax(local @ normals.T - polygon.offset, axis=1)
     v = polygon.vertices
@@ -151,10 +140,7 @@ def finger_candidates(
     along = ((foot - start) * (end - start)).sum(1) / length
     keep = (along >= params.edge_inset) & (along <= length - params.edge_inset)
     near, edge, foot, along = near[keep], edge[keep], foot[keep], along[keep]
-    c, s = np.cos(yaw), np.sin(yaw)
-    n_world = np.column_stack(
-        [c * normals[edge, 0] - s * normals[edge, 1], s * normals[edge, 0] + c * normals[edge, 1]]
-    )
+    n_world = place_polygon(normals[edge], (0.0, 0.0), yaw)
     n_local = np.column_stack([n_world, np.zeros(len(near))]) @ R0
     off = np.abs(inside[near] - criteria.squeeze) / params.tolerance
     share = np.maximum(
@@ -180,7 +166,7 @@ def finger_candidates(
             chosen.append(int(i))
             per_edge[k] = per_edge.get(k, 0) + 1
     idx = np.asarray(chosen, dtype=np.int64)
-    world_xy = foot[idx] @ np.array([[c, s], [-s, c]]) + centre
+    world_xy = place_polygon(foot[idx], centre, yaw)
     point = np.column_stack([world_xy, tips[near[idx], 2]])
     theta = np.arctan2(foot[idx, 1], foot[idx, 0])
     return _Candidates(near[idx], edge[idx], along[idx], theta, point, share[idx])

@@ -168,9 +168,6 @@ class Episode:
     #: the lateral pre-shape's contacts (a FingerContacts the reach test passed at its palm
     #: pose): Fine Reach's targets and the grasp controller's start; None without one
     preshape_contacts: FingerContacts | None = None
-    #: each contact's arc (n, 2) when the lateral pre-shape's contacts were sampled (their own
-    #: faces), else None (the side arcs)
-    preshape_arcs: Any | None = None
     #: the hand posture (16,) that took the sampled pre-shape's contacts in its reach test: the
     #: hand IK's start of the reach tests that follow (None without a sampled pre-shape)
     preshape_hand_q: Any | None = None
@@ -211,7 +208,7 @@ class Episode:
         self.model = self.target = self.planning = self.prism = None
         self.coarse = self.synthesis = self.contacts = self.reach = self.grip = None
         self.top_poses = None
-        self.preshape_arcs = self.preshape_hand_q = None
+        self.preshape_hand_q = None
         self.posture_mode = "hold"
         return self.record
 

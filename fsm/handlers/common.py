@@ -5,8 +5,6 @@ lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -16,7 +14,7 @@ from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
-from controllers.lateral_grasp import DEFAULT_SAMPLING, SampledGrasp, sampled_lateral_grasp
+from controllers.lateral_grasp import SampledGrasp, sampled_lateral_grasp
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
     PalmPose,
@@ -49,13 +47,15 @@ def finger_samples(ep: Episode) -> FingerSamples:
 
 
 def squeeze_reach(ep: Episode) -> float:
-    """How far past its contact each fingertip must reach in this cycle's grasp: a lateral
-    grasp from sampled contacts asks ``reach_margin`` more (the pre-shape's search asked it, so
-    every later reach test asks what that one passed)."""
-    if not slides(ep):
-        return SQUEEZE_REACH
-    sampled = ep.preshape_hand_q is not None
-    return ep.config.lateral_squeeze_reach + (DEFAULT_SAMPLING.reach_margin if sampled else 0.0)
+    """How far past its contact each fingertip must reach in this cycle's grasp."""
+    return ep.config.lateral_squeeze_reach if slides(ep) else SQUEEZE_REACH
+
+
+def sampled_preshape(ep: Episode) -> bool:
+    """Whether this cycle's lateral pre-shape took sampled contacts (``ep.preshape_hand_q`` is
+    the posture that took them): each stays on its own face at its height, the reach tests start
+    from that posture and the arm holds the pre-shape's palm pose."""
+    return slides(ep) and ep.preshape_hand_q is not None
 
 
 def block_site(ep: Episode) -> BlockSite:
@@ -79,7 +79,7 @@ def reach_query(ep: Episode) -> ReachQuery:
     contacts were sampled: those are taken at their heights; a top 3-D grasp's contacts are
     taken at their own heights."""
     lateral = slides(ep)
-    sampled = lateral and ep.preshape_arcs is not None and ep.preshape_contacts is not None
+    sampled = sampled_preshape(ep)
     # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp then
     # takes those heights), but keep the heights of sampled pre-shape contacts (each finger on
     # its own face, where its sampled posture took it); a top 3-D grasp's fingers go to its
@@ -105,7 +105,7 @@ def reach_start(ep: Episode) -> NDArray[np.float64] | None:
     hand in the posture that took the sampled pre-shape's contacts (a lateral hand at the edge of
     its workspace: from the hand's present posture the IK stalls millimetres short), or None
     (the world's configuration)."""
-    if not slides(ep) or ep.preshape_hand_q is None:
+    if not sampled_preshape(ep):
         return None
     qpos = ep.world.data.qpos.copy()
     qpos[robot.hand_qpos_addresses(ep.world.model)] = ep.preshape_hand_q
@@ -157,10 +157,12 @@ def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np
 
 
 def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Each lateral contact's arc (n, 2): its own face when the pre-shape's contacts were
-    sampled (``ep.preshape_arcs``), else its side's (:func:`arcs_of` of :func:`side_arcs`)."""
-    if ep.preshape_arcs is not None and len(ep.preshape_arcs) == len(theta):
-        return ep.preshape_arcs
+    """Each lateral contact's arc (n, 2): the pre-shape contact's own face when they were sampled
+    (:func:`controllers.palm_candidates.face_arcs`), else its side's (:func:`arcs_of` of
+    :func:`side_arcs`)."""
+    if sampled_preshape(ep):
+        inset = ep.config.palm_pose.side_inset
+        return face_arcs(ep.target.polygon, ep.preshape_contacts.theta, inset)
     return arcs_of(side_arcs(ep), theta)
 
 
@@ -173,12 +175,12 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     lowest-S_G contacts the hand's sampled finger postures take at a pose
     (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, over
     :func:`controllers.palm_candidates.lateral_poses`' wider set), each kept on its own face
-    afterwards (``ep.preshape_arcs``); when none is found either, the pinch's pose of least
+    afterwards (:func:`contact_arcs`); when none is found either, the pinch's pose of least
     reach load. The contacts, when the hand reaches them there, are kept
     (``ep.preshape_contacts``) for Fine Reach and the grasp controller. Returns what was done,
     for the log, or None when no pose is approached without collision."""
     ep.preshape_contacts = None
-    ep.preshape_arcs = ep.preshape_hand_q = None
+    ep.preshape_hand_q = None
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
@@ -197,10 +199,7 @@ def _sampled_preshape(ep: Episode, skip: int) -> str | None:
     """:func:`lateral_preshape` from sampled contacts; None when no pose has a sampled grasp
     that the hand reaches and approaches without collision."""
     params = ep.config.palm_pose
-    # the fingers must reach further than the lateral squeeze alone: the arm lands millimetres
-    # off the searched posture (the servos' tracking) and the contacts stay within reach
-    margin = DEFAULT_SAMPLING.reach_margin
-    query = dataclasses.replace(reach_query(ep), squeeze=squeeze_reach(ep) + margin)
+    query = reach_query(ep)
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
     hand_adr = robot.hand_qpos_addresses(ep.world.model)
     pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
@@ -239,7 +238,6 @@ def _sampled_preshape(ep: Episode, skip: int) -> str | None:
         return None
     approach(block_site(ep), found.approach)
     ep.preshape_contacts = found.contacts
-    ep.preshape_arcs = face_arcs(ep.target.polygon, found.contacts.theta, params.side_inset)
     ep.preshape_hand_q = found.hand_q
     return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})"
 

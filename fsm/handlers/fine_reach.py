@@ -10,7 +10,7 @@ from controllers.grasp.session import keep_contacts
 from controllers.hand_reach import CONTACT_SEPARATION
 from controllers.planning_model import PERCEIVED_GEOM
 from fsm.context import Episode
-from fsm.handlers.common import contact_arcs, slides
+from fsm.handlers.common import contact_arcs, sampled_preshape, slides
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
@@ -50,7 +50,7 @@ def fine_reach_state(ep: Episode) -> Step:
         model=ep.planning,
         touchable=PERCEIVED_GEOM,
         # a sampled lateral pre-shape's palm pose was chosen for its contacts: the arm holds it
-        joints="hand" if slides(ep) and ep.preshape_hand_q is not None else "arm+hand",
+        joints="hand" if sampled_preshape(ep) else "arm+hand",
     )
     worst = float(result.tip_error.max())
     if not result.reached and worst > config.fine_reach_give_up:

@@ -20,7 +20,14 @@ from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, searc
 from controllers.planning_model import PERCEIVED_GEOM
 from controllers.posture import apply_posture, solve_posture
 from fsm.context import Episode
-from fsm.handlers.common import block_site, plan_approach, reach_query, side_arcs, slides
+from fsm.handlers.common import (
+    block_site,
+    plan_approach,
+    reach_query,
+    sampled_preshape,
+    side_arcs,
+    slides,
+)
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, State, Step
 
@@ -31,7 +38,7 @@ def posture_control(ep: Episode) -> Step:
     virtual contacts within the fingers' reach (from Wrench Closure), never touching anything
     but the block's surface with the pads (collision avoidance in the perceived world)."""
     world = ep.world
-    if ep.posture_mode == "hold" and ep.preshape_hand_q is not None and slides(ep):
+    if ep.posture_mode == "hold" and sampled_preshape(ep):
         # a sampled lateral pre-shape's palm pose was chosen for its contacts, at the edge of
         # the fingers' workspace: raising the manipulability with the tips held moves the palm
         # off it and the contacts out of reach (docs/task_cycle.md)
