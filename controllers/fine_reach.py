@@ -226,6 +226,28 @@ class FineReachResult:
     stopped_on_touch: tuple[str, ...] = ()  #: fingers the touch guard stopped before their target
 
 
+def _reach_result(
+    err: NDArray[np.float64],
+    stopped: NDArray[np.bool_],
+    tolerance: float,
+    targets: SurfaceTargets,
+    periods: int,
+    depth: float,
+    others: set[tuple[str, str]],
+) -> FineReachResult:
+    """A reach's result: reached when every fingertip is within ``tolerance`` of its goal
+    (``err``, m) or was stopped by the touch guard."""
+    return FineReachResult(
+        reached=bool(np.all((err < tolerance) | stopped)),
+        tip_error=err,
+        targets=targets,
+        periods=periods,
+        max_penetration=depth,
+        other_contacts=tuple(sorted(others)),
+        stopped_on_touch=tuple(f for f, s in zip(robot.FINGERS, stopped, strict=True) if s),
+    )
+
+
 def _hand_contacts(world: World, target_body: int) -> tuple[float, set[tuple[str, str]]]:
     m, d = world.model, world.data
     depth, others = 0.0, set()
@@ -262,7 +284,6 @@ def fine_reach(
     standoff: float = TOUCH_STANDOFF,
     model: mujoco.MjModel | None = None,
     touchable: str | None = None,
-    joints: str = "arm+hand",
 ) -> FineReachResult:
     """Bring the fingertips to ``targets`` on block ``target_name`` (default: the fingertips'
     current positions projected on its side faces, :func:`project_to_surface`), following each
@@ -277,9 +298,8 @@ def fine_reach(
 
     ``model`` (e.g. the planning model holding the perceived block,
     :mod:`controllers.planning_model`) turns on collision avoidance in the IK: the hand's links
-    keep clear of the table and the
-    blocks, and only the pads may touch the geom named ``touchable``. ``joints``: "arm+hand" (arm
-    and hand follow the fields) or "hand" (the arm holds its posture)."""
+    keep clear of the table and the blocks, and only the pads may touch the geom named
+    ``touchable``. Arm and hand follow the fields."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")
     target = ReachTarget.from_world(world, target_name) if seen is None else seen
@@ -314,7 +334,7 @@ def fine_reach(
             world,
             nxt,
             optimize=False,
-            joints=joints,
+            joints="arm+hand",
             reach_iterations=IK_ITERATIONS,
             model=model,
             avoid_collisions=model is not None,
@@ -327,12 +347,65 @@ def fine_reach(
         d, o = _hand_contacts(world, target_body)
         depth, others = max(depth, d), others | o
     err = np.linalg.norm(world.fingertip_positions() - goals, axis=1)
-    return FineReachResult(
-        reached=bool(np.all((err < tolerance) | stopped)),
-        tip_error=err,
-        targets=targets,
-        periods=periods,
-        max_penetration=depth,
-        other_contacts=tuple(sorted(others)),
-        stopped_on_touch=tuple(f for f, s in zip(robot.FINGERS, stopped, strict=True) if s),
-    )
+    return _reach_result(err, stopped, tolerance, targets, periods, depth, others)
+
+
+#: Simulated time (s) of a reach along the fingers' backing-off lines
+#: (:func:`reach_along_normals`), and the time (s) the servos then settle.
+NORMAL_REACH_TIME = 1.0
+NORMAL_SETTLE_TIME = 0.3
+
+
+def reach_along_normals(
+    world: World,
+    target_name: str,
+    hand_to: ArrayLike,
+    targets: SurfaceTargets,
+    *,
+    standoff: float = TOUCH_STANDOFF,
+    tolerance: float = DEFAULT_TOLERANCE,
+    duration: float = NORMAL_REACH_TIME,
+) -> FineReachResult:
+    """Fine reach of a hand whose palm already faces its contacts and whose posture ``hand_to``
+    (16,) puts each fingertip ``standoff`` outside its contact (``targets``) on block
+    ``target_name``: the hand's servo
+    targets move on the straight joint-space line from where they are to ``hand_to``, the arm
+    held. When the hand starts backed off from ``hand_to``'s contact posture along the fingers'
+    squeeze directions (:func:`controllers.grip.backed_off_hand`), that line brings each
+    fingertip in along its contact's normal, where the approach was checked clear: unlike the
+    harmonic fields' IK (:func:`fine_reach`), no link sweeps round the block or into the table.
+    The touch guard (:func:`touch_guard`) holds a finger that touches early where it is. The
+    result's ``tip_error`` is each fingertip's distance from its goal along the contact's
+    normal."""
+    if tolerance <= 0:
+        raise ReachError(f"tolerance must be > 0 m, got {tolerance}")
+    q0 = world.hand_targets()
+    q1 = np.asarray(hand_to, dtype=float)
+    goals = targets.points + standoff * targets.normals
+    steps = control_steps(world)
+    held = q0.copy()
+    stopped = np.zeros(len(robot.FINGERS), dtype=bool)
+    n = max(1, round(duration / CONTROL_PERIOD))
+    settle = round(NORMAL_SETTLE_TIME / CONTROL_PERIOD)
+    target_body = world.block_body_id(target_name)
+    depth, others = 0.0, set()
+    periods = 0
+    for k in range(1, n + settle + 1):
+        touched = touch_guard(world) & ~stopped
+        for f in np.flatnonzero(touched):
+            # a finger that touched holds the joints it has reached
+            held[robot.FINGER_JOINT_SLICES[f]] = world.hand_qpos()[robot.FINGER_JOINT_SLICES[f]]
+        stopped |= touched
+        s = 0.5 - 0.5 * np.cos(np.pi * min(k, n) / n)
+        q = q0 + s * (q1 - q0)
+        for f in np.flatnonzero(stopped):
+            q[robot.FINGER_JOINT_SLICES[f]] = held[robot.FINGER_JOINT_SLICES[f]]
+        world.set_hand_targets(q)
+        world.step(steps)
+        periods += 1
+        d, o = _hand_contacts(world, target_body)
+        depth, others = max(depth, d), others | o
+    # along the normal: the posture took each contact on the fingertip's rounded end wherever
+    # its pad faced the face, not at the tip site
+    err = np.abs(np.sum((world.fingertip_positions() - goals) * targets.normals, axis=1))
+    return _reach_result(err, stopped, tolerance, targets, periods, depth, others)

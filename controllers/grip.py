@@ -74,11 +74,6 @@ RELEASE_TIME = 0.8
 RELEASE_PROGRESS = -0.6
 
 
-def _finger_slices() -> list[slice]:
-    n = robot.JOINTS_PER_FINGER
-    return [slice(n * f, n * (f + 1)) for f in range(len(robot.FINGERS))]
-
-
 @dataclass
 class Grip:
     """The fingers' lines in joint space and their progress; see the module docstring."""
@@ -97,7 +92,7 @@ class Grip:
     def targets(self) -> NDArray[np.float64]:
         """(16,) hand servo targets for the current progress."""
         q = self.q_pre.copy()
-        for f, sl in enumerate(_finger_slices()):
+        for f, sl in enumerate(robot.FINGER_JOINT_SLICES):
             q[sl] = self.q_pre[sl] + self.progress[f] * (self.q_in[sl] - self.q_pre[sl])
         return q
 

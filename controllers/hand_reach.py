@@ -210,8 +210,9 @@ def check_reach(
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
     The fingertips must reach ``squeeze`` (default :data:`SQUEEZE_REACH`) past each contact, pads
     facing it.
-    ``check_spacing=False`` leaves out the pad-spacing test (no arm posture can change it: the
-    task cycle applies it to the controller's final contacts only). With ``slide`` each contact
+    ``check_spacing=False`` leaves out the pad-spacing test (the pad centres on their contacts,
+    at the heights taken, :data:`MIN_PAD_SPACING` apart; the task cycle applies it to the
+    controller's final contacts only). With ``slide`` each contact
     may move up or down its face (a planar contact is a vertical line on the prism's face) between
     :data:`BOTTOM_MARGIN` above the prism's bottom and :data:`TOP_MARGIN` below its top; the
     heights taken are in the verdict's ``heights``. With ``samples`` and ``slide`` each finger's IK
@@ -230,10 +231,6 @@ def check_reach(
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     start = np.asarray(world.data.qpos if qpos is None else qpos, dtype=float).copy()
-    centres_at_contact = p + robot.PAD_RADIUS * n
-    gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
-    gaps[np.diag_indices(len(p))] = np.inf
-    spacing = float(gaps.min())
     tips, centres = grip_targets(p, n, squeeze)
     heights = (prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN)
     # a fingertip target beyond its finger's span is unreachable whatever the IK does: where the
@@ -257,6 +254,13 @@ def check_reach(
         give_up=give_up,
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
+    # the pads where they take their contacts: at the heights a sliding contact was taken at
+    # (a lateral hand's fingers stacked on one face, a pad's width apart in the plane, are
+    # centimetres apart in height)
+    centres_at_contact = np.column_stack([p[:, :2], heights]) + robot.PAD_RADIUS * n
+    gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
+    gaps[np.diag_indices(len(p))] = np.inf
+    spacing = float(gaps.min())
     data.qpos[:] = start
     data.qpos[scratch.indices.hand_qpos] = sol.hand_q
     mujoco.mj_kinematics(model, data)

@@ -11,8 +11,8 @@ Here, at a palm pose beside the block, every sampled posture of each finger
 side face of the perceived prism and that meets the reachability criteria of
 :mod:`controllers.hand_reach` (pad facing the face, not sideways, the contact on the palmar half,
 no link in the block) gives that finger a candidate contact. Of the combinations of one
-candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart in the
-plane, as the planar grasp controller keeps them), the one with the lowest S_G (Eq. 13, planar,
+candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart where they
+take their contacts, heights included), the one with the lowest S_G (Eq. 13, planar,
 on the unit-moment polygon, section 3.4) is the grasp; the reach test then confirms it with the
 hand's own inverse kinematics.
 """
@@ -173,7 +173,7 @@ def finger_candidates(
 
 
 def _pad_centres(polygon: Polygon, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Object-frame pad centres (..., 2): one pad radius out from each contact."""
+    """Object-frame pad centres (..., 2) in the plane: one pad radius out from each contact."""
     frames = polygon.locate(theta)
     return frames.point + robot.PAD_RADIUS * frames.normal
 
@@ -212,7 +212,15 @@ def sampled_lateral_grasp(
         return None
     combos = np.array(list(itertools.product(*(range(len(c.sample)) for c in per))))
     theta = np.column_stack([c.theta[combos[:, f]] for f, c in enumerate(per)])
-    pads = _pad_centres(polygon, theta)
+    # the pads where they take their contacts, at their heights: fingers stacked on one face
+    # (the middle finger above the palm's centre, the ring finger level with it) are apart
+    pads = np.concatenate(
+        [
+            _pad_centres(polygon, theta),
+            np.column_stack([c.point[combos[:, f], 2] for f, c in enumerate(per)])[..., None],
+        ],
+        axis=-1,
+    )
     fits = np.ones(len(combos), dtype=bool)
     for i, j in itertools.combinations(range(theta.shape[1]), 2):
         fits &= np.linalg.norm(pads[:, i] - pads[:, j], axis=1) >= CONTACT_SEPARATION

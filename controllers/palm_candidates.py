@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.grasp.polygon import Polygon
-from controllers.reach import LATERAL_DEPTH, ReachTarget
+from controllers.reach import LATERAL_DEPTH, ReachTarget, lateral_frame
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
 from hand_sim.world import World
@@ -150,11 +150,13 @@ def lateral_poses(
     sampled: bool = False,
     hand: NDArray[np.float64] | None = None,
 ) -> list[PalmPose]:
-    """Palm poses beside the perceived block: the approach axis horizontal and radial (the arm
-    has five joints), hand y up as the coarse reach put it (``coarse_rotation``, its goal palm
-    rotation), turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the
-    block's nearest point along the axis, at the coarse reach's height, ``lateral_shifts``
-    aside; in order of the gap. The hand takes the pinch pre-shape.
+    """Palm poses beside the perceived block: the approach axis radial (the arm has five joints)
+    and horizontal, or pitched down as the coarse reach's (``coarse_rotation``, its goal palm
+    rotation; :data:`controllers.reach.LATERAL_TILTS`), hand y up as the coarse reach put it,
+    turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the block's
+    nearest point along the axis (which passes LATERAL_DEPTH below the top of the block's
+    vertical axis), ``lateral_shifts`` aside; in order of the gap. The hand
+    takes the pinch pre-shape.
 
     With ``arcs`` (:func:`lateral_arcs`) the gaps are counted from where the side faces the
     fingers can take begin (less ``side_inset``), when that lies beyond the nearest point: a
@@ -170,6 +172,9 @@ def lateral_poses(
     axis = np.array([*(centre[:2] - base), 0.0])
     axis /= np.linalg.norm(axis)
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
+    # the coarse reach's pitch of the approach axis below the horizontal (0 but where the arm
+    # reaches a lateral goal only pitched, controllers.reach.LATERAL_TILTS)
+    tilt = float(np.arcsin(np.clip(-coarse_rotation[2, 2], -1.0, 1.0)))
     near = float(((target.footprint() - centre[:2]) @ axis[:2]).min())
     if arcs is not None:
         ends = place_polygon(
@@ -182,12 +187,15 @@ def lateral_poses(
     for gap in gaps:
         for roll in params.lateral_rolls:
             for shift in shifts:
-                palm = centre + (near - gap) * axis + shift * np.cross(up, axis)
+                # the palm (near - gap) from the block along the (pitched) approach axis
+                palm = centre + (near - gap) * lateral_frame(axis, tilt)[:, 2]
+                palm += shift * np.cross(up, axis)
                 # the approach axis through the shifted palm is radial, as the arm has it
                 radial = np.array([*(palm[:2] - base), 0.0])
                 radial /= np.linalg.norm(radial)
-                y = np.cos(roll) * up + np.sin(roll) * np.cross(up, radial)
-                rot = np.column_stack([np.cross(y, radial), y, radial])
+                rot = lateral_frame(radial, tilt, roll)
+                if up[2] < 0:  # hand y down: the coarse reach's frame turned about the axis
+                    rot = rot @ np.diag([-1.0, -1.0, 1.0])
                 arm = checker.solve_ik(palm, rot, q_arm)
                 if not arm.found:
                     continue

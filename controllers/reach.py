@@ -48,16 +48,29 @@ APPROACH_GAP = 0.04
 LATERAL_DEPTH = 0.10
 #: Lateral goals tried, in order, when the one at (LATERAL_DEPTH, APPROACH_GAP) has no
 #: collision-free posture: (palm depth below the top, gap between the pre-shaped fingertips and
-#: the block), m. For a block nearer the arm's base than about 0.57 m the 5-joint arm reaches
-#: the nominal lateral goal only with its wrist pitched so far that the palm and fingers hit its
-#: own forearm (26 of the 35 "no collision-free goal posture" failures of the 100 random
-#: lateral scenes, docs/task_cycle.md); a palm closer to the block or higher unfolds the wrist.
-#: The depths keep the middle finger's knuckle (5.8 cm above the palm centre) below the top.
-LATERAL_GOAL_FALLBACKS: tuple[tuple[float, float], ...] = (
-    (LATERAL_DEPTH, 0.02),
-    (LATERAL_DEPTH, 0.0),
-    (0.07, 0.02),
-    (0.07, 0.0),
+#: the block, m; approach axis pitched down from the horizontal, rad). For a block nearer the
+#: arm's base than about 0.57 m the 5-joint arm reaches the nominal lateral goal only with its
+#: wrist pitched so far that the palm and fingers hit its own forearm (26 of the 35 "no
+#: collision-free goal posture" failures of the 100 random lateral scenes, docs/task_cycle.md);
+#: a palm closer to the block or higher unfolds the wrist. The depths keep the middle finger's
+#: knuckle (5.8 cm above the palm centre) below the top. Then the axis pitched down by
+#: LATERAL_TILTS: 15 deg unfolds the wrist of every block 0.44-0.50 m from the base (13 of the
+#: 22 scenes of the 100 random lateral ones of record with no horizontal goal), 30-45 deg lifts
+#: the hand over a neighbour on the radial line (8 of the other 9; docs/task_cycle.md).
+LATERAL_TILTS: tuple[float, ...] = (np.deg2rad(15.0), np.deg2rad(30.0), np.deg2rad(45.0))
+#: A lateral goal pitched more than this (rad) is one of LATERAL_TILTS': with ``auto`` it is
+#: taken only where the top approach has no path.
+PITCH_TOLERANCE = np.deg2rad(1.0)
+LATERAL_GOAL_FALLBACKS: tuple[tuple[float, float, float], ...] = (
+    (LATERAL_DEPTH, 0.02, 0.0),
+    (LATERAL_DEPTH, 0.0, 0.0),
+    (0.07, 0.02, 0.0),
+    (0.07, 0.0, 0.0),
+    *(
+        (depth, gap, tilt)
+        for tilt in LATERAL_TILTS
+        for depth, gap in ((LATERAL_DEPTH, APPROACH_GAP), (LATERAL_DEPTH, 0.02), (0.07, 0.02))
+    ),
 )
 
 
@@ -116,6 +129,12 @@ class ApproachGoal:
     palm_position: NDArray[np.float64]  #: (3,)
     palm_rotation: NDArray[np.float64]  #: (3, 3), columns = hand x, y, z (z = approach axis)
 
+    @property
+    def pitch(self) -> float:
+        """The approach axis's angle below the horizontal (rad): pi/2 for a top goal, 0 for a
+        level lateral one."""
+        return float(np.arcsin(np.clip(-self.palm_rotation[2, 2], -1.0, 1.0)))
+
 
 @dataclass(frozen=True, eq=False)
 class CoarseReachPlan:
@@ -134,11 +153,15 @@ class CoarseReachPlan:
 
 
 def choice_reason(
-    approaches: tuple[str, ...], candidates: dict[str, ArmPath], no_goal: tuple[str, ...], best: str
+    approaches: tuple[str, ...],
+    candidates: dict[str, ArmPath],
+    no_goal: tuple[str, ...],
+    best: str,
 ) -> str:
     """Why ``best`` was taken among ``approaches`` (section 5.2: the paths decide): the only one
     asked for, the only one with a path (each other one's reason named: no collision-free goal
-    posture, or its planner's), or the shortest path (the lengths compared, rad)."""
+    posture, or its planner's), the shortest path (the lengths compared, rad), or a level goal's
+    path over a shorter one to a lateral goal only pitched down."""
     if len(approaches) == 1:
         return f"the only approach asked for (--approach {best})"
     others = [a for a in approaches if a != best]
@@ -152,6 +175,15 @@ def choice_reason(
         for a in approaches
         if a in candidates and candidates[a].found
     )
+    shorter = [
+        a
+        for a in others
+        if a in candidates
+        and candidates[a].found
+        and candidates[a].length < candidates[best].length
+    ]
+    if shorter:  # a shorter path whose lateral goal is only pitched down
+        return f"a level goal first: lateral's is only pitched down ({lengths})"
     return f"the shortest path in joint space ({lengths})"
 
 
@@ -202,13 +234,29 @@ def _radial(target: ReachTarget, base_xy: ArrayLike) -> NDArray[np.float64]:
 
 
 def lateral_pose(
-    target: ReachTarget, radial: NDArray[np.float64], depth: float, gap: float
+    target: ReachTarget, radial: NDArray[np.float64], depth: float, gap: float, tilt: float = 0.0
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The lateral palm pose (position, rotation) facing the block along ``radial`` with the
-    palm centre ``depth`` below its top and the pre-shaped fingertips ``gap`` from it."""
-    centre = np.array([*target.position_xy, target.top_z - depth])
+    pre-shaped fingertips ``gap`` from it and the approach axis through the point ``depth``
+    below its top on its vertical axis; the axis pitched ``tilt`` (rad) down from the
+    horizontal, hand y in the vertical plane through it (:func:`lateral_frame`)."""
+    aim = np.array([*target.position_xy, target.top_z - depth])
     standoff = target.radius + FINGER_REACH + gap
-    return centre - standoff * radial, _frame(np.array([0.0, 0.0, 1.0]), radial)
+    rot = lateral_frame(radial, tilt)
+    return aim - standoff * rot[:, 2], rot
+
+
+def lateral_frame(
+    radial: NDArray[np.float64], tilt: float, roll: float = 0.0
+) -> NDArray[np.float64]:
+    """A lateral palm rotation: approach axis (z) along the horizontal ``radial`` pitched
+    ``tilt`` (rad) down, hand y up in the vertical plane through it (the finger row horizontal),
+    then turned ``roll`` (rad) about the axis."""
+    up = np.array([0.0, 0.0, 1.0])
+    z = np.cos(tilt) * radial - np.sin(tilt) * up
+    y0 = np.cos(tilt) * up + np.sin(tilt) * radial
+    y = np.cos(roll) * y0 + np.sin(roll) * np.cross(up, radial)
+    return _frame(y, z)
 
 
 def lateral_fallback_poses(
@@ -216,7 +264,7 @@ def lateral_fallback_poses(
 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """The lateral goals of :data:`LATERAL_GOAL_FALLBACKS`, in their order."""
     radial = _radial(target, base_xy)
-    return [lateral_pose(target, radial, d, g) for d, g in LATERAL_GOAL_FALLBACKS]
+    return [lateral_pose(target, radial, d, g, t) for d, g, t in LATERAL_GOAL_FALLBACKS]
 
 
 #: Seeds of the arm IK (waist is set towards the target): elbow-up reaching postures.
@@ -265,7 +313,8 @@ def plan_coarse_reach(
     model: mujoco.MjModel | None = None,
 ) -> CoarseReachPlan:
     """Plan the coarse reach to ``target`` from the world's current arm posture, holding the hand
-    at ``hand_q``: every approach is planned and the shortest existing path wins. ``model`` is
+    at ``hand_q``: every approach is planned and the shortest existing path wins (a lateral goal
+    only pitched down, :data:`LATERAL_TILTS`, only where no top path exists). ``model`` is
     the model collisions are checked in (default the world's; the task cycle passes the
     planning model holding the perceived target, :mod:`controllers.planning_model`)."""
     unknown = [a for a in approaches if a not in APPROACHES]
@@ -304,7 +353,9 @@ def plan_coarse_reach(
         return CoarseReachPlan(
             False, "", None, None, hand, candidates, reasons.strip("; "), missing
         )
-    best = min(found, key=lambda a: found[a].length)
+    # a lateral goal only pitched down (LATERAL_TILTS) is a last resort: any level path first
+    pitched = {a: goals[a].pitch > PITCH_TOLERANCE for a in found if a == "lateral"}
+    best = min(found, key=lambda a: (pitched.get(a, False), found[a].length))
     return CoarseReachPlan(
         True,
         best,

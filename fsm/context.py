@@ -83,6 +83,10 @@ class CycleRecord:
     delivered_elsewhere: bool = False
     place_moved_mm: float | None = None
     approach: str = ""
+    #: the approach axis's pitch below the horizontal (deg): 90 for a top grasp, 0 for a
+    #: lateral one, 15-45 where the arm reaches a lateral goal only pitched down
+    #: (controllers.reach.LATERAL_TILTS)
+    approach_pitch_deg: float | None = None
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
     #: why each other block Select/Model could not model was not (each then counts as an

@@ -31,6 +31,10 @@ FINGERS: tuple[str, ...] = ("ff", "mf", "rf", "th")
 #: Joints per finger: abduction (j0) then three flexions (j1..j3).
 JOINTS_PER_FINGER = 4
 HAND_JOINTS: tuple[str, ...] = tuple(f"{f}j{i}" for f in FINGERS for i in range(JOINTS_PER_FINGER))
+#: Each finger's entries (in FINGERS order) in the hand's 16 joints, actuators and targets.
+FINGER_JOINT_SLICES: tuple[slice, ...] = tuple(
+    slice(JOINTS_PER_FINGER * f, JOINTS_PER_FINGER * (f + 1)) for f in range(len(FINGERS))
+)
 HAND_ACTUATORS: tuple[str, ...] = tuple(
     f"{f}a{i}" for f in FINGERS for i in range(JOINTS_PER_FINGER)
 )

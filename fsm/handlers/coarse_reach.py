@@ -3,8 +3,10 @@ or beside (lateral) the perceived block."""
 
 from __future__ import annotations
 
+import math
+
 from controllers.arm_path import execute_path
-from controllers.reach import APPROACHES, plan_coarse_reach
+from controllers.reach import APPROACHES, PITCH_TOLERANCE, plan_coarse_reach
 from fsm.context import Episode
 from fsm.handlers.common import lateral_preshape
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -21,6 +23,13 @@ def coarse_reach(ep: Episode) -> Step:
         raise TaskFailedError(Failure.NO_COARSE_PATH, plan.reason)
     ep.coarse = plan
     ep.record.approach = plan.approach
+    pitch = math.degrees(plan.goal.pitch)
+    ep.record.approach_pitch_deg = round(pitch, 1)
+    pitched = (
+        f" (axis pitched {pitch:.0f} deg down)"
+        if plan.approach == "lateral" and plan.goal.pitch > PITCH_TOLERANCE
+        else ""
+    )
     run = execute_path(ep.world, plan.path.path, hand_q=plan.hand_q)
     touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
     preshape = ""
@@ -29,5 +38,5 @@ def coarse_reach(ep: Episode) -> Step:
         preshape = "; " + (done or "no pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
-        f"{plan.approach} approach: {plan.choice}; touched {touched} on the way{preshape}",
+        f"{plan.approach} approach{pitched}: {plan.choice}; touched {touched} on the way{preshape}",
     )

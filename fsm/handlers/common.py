@@ -169,18 +169,24 @@ def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]
 def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
     its contacts (:func:`controllers.palm_pose.search_poses`), the hand then shaped outside them
-    and the palm moved there along its approach axis (``skip``: the next pose). First the pinch
-    pre-shape's contacts (the surface points nearest its fingertips, kept a pad spacing apart on
-    the side arcs). When no pose reaches those and ``config.lateral_contacts == "sampled"``, the
-    lowest-S_G contacts the hand's sampled finger postures take at a pose
+    and the palm moved there along its approach axis (``skip``: the next pose). The contacts
+    come from ``config.lateral_contacts``: "sampled-first" (default), the lowest-S_G contacts
+    the hand's sampled finger postures take at a pose
     (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, over
     :func:`controllers.palm_candidates.lateral_poses`' wider set), each kept on its own face
-    afterwards (:func:`contact_arcs`); when none is found either, the pinch's pose of least
-    reach load. The contacts, when the hand reaches them there, are kept
-    (``ep.preshape_contacts``) for Fine Reach and the grasp controller. Returns what was done,
-    for the log, or None when no pose is approached without collision."""
+    afterwards (:func:`contact_arcs`), and where no pose has such a grasp the pinch pre-shape's
+    (the surface points nearest its fingertips, kept a pad spacing apart on the side arcs);
+    "sampled", the pinch's first and the sampled ones where no pose reaches those; "pinch", the
+    pinch's only. When none is reached, the pinch's pose of least reach load. The contacts, when
+    the hand reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the
+    grasp controller. Returns what was done, for the log, or None when no pose is approached
+    without collision."""
     ep.preshape_contacts = None
     ep.preshape_hand_q = None
+    if ep.config.lateral_contacts == "sampled-first":
+        done = _sampled_preshape(ep, skip)
+        if done is not None:
+            return done
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":

@@ -5,7 +5,6 @@ test's own hand IK), and a whole lateral episode from it is judged physically.""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -13,7 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
+import fsm.handlers.fine_reach as fine_reach_handler
 from controllers.cspace import CollisionChecker
+from controllers.fine_reach import reach_along_normals
 from controllers.finger_geometry import PerceivedPrism, fingertips_at
 from controllers.finger_samples import FingerSamples
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
@@ -21,8 +22,8 @@ from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
 from controllers.hand_reach import CONTACT_SEPARATION, TOP_MARGIN, check_reach
 from controllers.lateral_grasp import LateralSampling, sampled_lateral_grasp
 from controllers.palm_candidates import PoseSetting, face_arcs, lateral_poses
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
-from fsm.config import DEFAULT_CONFIG
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, lateral_frame, solve_goal
+from fsm.config import TaskConfig
 from fsm.context import EpisodeOptions
 from fsm.machine import run_episode
 from hand_sim import robot
@@ -79,8 +80,8 @@ def test_sampled_contacts_lie_on_side_faces_where_the_sampled_fingertips_press(
     """Every contact of every grasp found lies on a side face of the prism (signed distance 0,
     between the height margins); forward kinematics of the grasp's hand posture at the pose puts
     each fingertip 4 mm (the squeeze) inside its contact's face, within the sampling's
-    tolerance; the pads are a pad spacing apart; S_G is that of the contacts on the
-    unit-moment polygon."""
+    tolerance; the pads are a pad spacing apart where they take their contacts; S_G is that of
+    the contacts on the unit-moment polygon."""
     world, target, prism, _ = square
     params = LateralSampling()
     assert len(grasps) >= 3
@@ -94,8 +95,9 @@ def test_sampled_contacts_lie_on_side_faces_where_the_sampled_fingertips_press(
         depth = -prism.signed_distance(fingertips_at(world.model, qpos))
         assert np.all(depth >= SQUEEZE - params.shortfall - 1e-9)
         assert np.all(depth <= SQUEEZE + params.tolerance + 1e-9)
-        frames = target.polygon.locate(grasp.theta)
-        pads = frames.point + robot.PAD_RADIUS * frames.normal
+        # the pads apart where they take their contacts, heights included
+        normals = np.column_stack([_world_normals(target, grasp.theta), np.zeros(4)])
+        pads = grasp.points + robot.PAD_RADIUS * normals
         gaps = np.linalg.norm(pads[:, None] - pads[None], axis=-1) + np.eye(4)
         assert gaps.min() >= CONTACT_SEPARATION
         u = unit.locate(grasp.theta)
@@ -170,21 +172,99 @@ def test_face_arcs_are_each_contacts_own_face_inset_from_its_corners(name: str) 
 
 
 @pytest.mark.e2e
-def test_a_lateral_grasp_from_sampled_contacts_delivers_the_square(tmp_path: Path) -> None:
-    """single_square, --approach lateral, ``lateral_contacts="sampled"``: no palm pose reaches
-    the pinch's contacts, so the pre-shape takes sampled contacts, the grasp holds them, and the
-    block is delivered, judged physically."""
-    config = dataclasses.replace(DEFAULT_CONFIG, lateral_contacts="sampled")
-    options = EpisodeOptions(
-        scene="single_square", approach="lateral", record=False, out=tmp_path, config=config
-    )
+def test_a_lateral_grasp_from_sampled_contacts_delivers_the_hexagon(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """single_hexagon, --approach lateral, the default ``lateral_contacts="sampled-first"``
+    (the pinch's contacts converged to a weak grasp there, S_G 0.58): the pre-shape takes
+    sampled contacts; Fine Reach brings each fingertip in along its contact's normal (measured
+    in the simulation: the fingertips' moves point into their faces, the block stays put), the
+    grasp holds them, and the block is delivered, judged physically."""
+    reaches = []
+
+    def measured(world, name, hand_to, targets, **kwargs):
+        before = world.fingertip_positions(), world.block_pose(name)[0]
+        result = reach_along_normals(world, name, hand_to, targets, **kwargs)
+        after = world.fingertip_positions(), world.block_pose(name)[0]
+        reaches.append((before, after, targets.normals))
+        return result
+
+    monkeypatch.setattr(fine_reach_handler, "reach_along_normals", measured)
+    options = EpisodeOptions(scene="single_hexagon", approach="lateral", record=False, out=tmp_path)
     result = run_episode(options)
-    assert result.success, result.failure_detail
     assert "sampled pre-shape" in result.visits[1].reason
+    assert reaches, "Fine Reach did not come in along the normals"
+    for (tips0, block0), (tips1, block1), normals in reaches:
+        move = tips1 - tips0
+        inward = -np.sum(move * normals, axis=1)
+        # each fingertip came in towards its face, most of its move along the normal (the tip
+        # site also swings a little as the finger's pad turns)
+        assert np.all(inward > 0.002), inward
+        assert np.all(inward > 0.6 * np.linalg.norm(move, axis=1))
+        assert np.linalg.norm(block1 - block0) < 0.001
+    assert result.success, result.failure_detail
     (cycle,) = result.cycles
     assert cycle["approach"] == "lateral" and cycle["s_g"] <= SUCCESS_THRESHOLD
+    assert cycle["approach_pitch_deg"] == pytest.approx(0.0, abs=1.0)
     j = cycle["judgement"]
     assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["options"]["config"]["lateral_contacts"] == "sampled"
+    # recorded like a top grasp: contacts, S_G and the approach in the summary
+    (recorded,) = json.loads((tmp_path / "summary.json").read_text())["cycles"]
+    assert recorded["approach"] == "lateral" and recorded["s_g"] == pytest.approx(cycle["s_g"])
+    assert len(recorded["contacts"]) == 4 and recorded["approach_pitch_deg"] is not None
+
+
+@pytest.mark.e2e
+def test_a_block_near_the_arms_base_is_grasped_from_a_pitched_lateral_approach(
+    tmp_path: Path,
+) -> None:
+    """Random scene 26 (one block 0.49 m from the arm's base), --approach lateral: no level
+    lateral goal exists (the hand would hit the arm's own forearm), so Coarse Reach pitches the
+    approach axis 15 deg down (controllers.reach.LATERAL_TILTS), says so in the log and the
+    summary, and the block is delivered, judged physically."""
+    options = EpisodeOptions(
+        scene="random", seed=26, blocks=1, approach="lateral", record=False, out=tmp_path
+    )
+    result = run_episode(options)
+    assert "lateral approach (axis pitched 15 deg down)" in result.visits[1].reason
+    assert result.success, result.failure_detail
+    (cycle,) = result.cycles
+    assert cycle["approach"] == "lateral"
+    assert cycle["approach_pitch_deg"] == pytest.approx(15.0, abs=1.0)
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+
+
+def test_an_unknown_source_of_lateral_contacts_is_refused() -> None:
+    """``TaskConfig.lateral_contacts`` takes one of its named sources; a misspelt one is an
+    error naming the valid ones, not a silent pinch."""
+    with pytest.raises(ValueError, match="pinch, sampled, sampled-first"):
+        TaskConfig(lateral_contacts="sample")
+
+
+def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -> None:
+    """Where the coarse reach's lateral goal is pitched down (controllers.reach.LATERAL_TILTS),
+    every palm pose of the pre-shape's search is pitched the same (forward kinematics of its
+    arm posture), faces the block along the radial line through the palm, and keeps the finger
+    row level up to its roll."""
+    world, target, _, _ = square
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
+    radial /= np.linalg.norm(radial)
+    tilt = np.deg2rad(15.0)
+    poses = lateral_poses(PoseSetting(world, world.model, target, lateral_frame(radial, tilt)))
+    assert len(poses) >= 10
+    data = mujoco.MjData(world.model)
+    palm = world.model.body(robot.hand_name(robot.PALM_BODY)).id
+    for pose in poses:
+        data.qpos[:] = pose.qpos
+        mujoco.mj_kinematics(world.model, data)
+        R = data.xmat[palm].reshape(3, 3)
+        assert np.arcsin(-R[2, 2]) == pytest.approx(tilt, abs=np.deg2rad(1.5))
+        through = np.array([*(data.xpos[palm][:2] - base), 0.0])
+        horizontal = R[:, 2] * np.array([1.0, 1.0, 0.0])
+        cos = horizontal @ through / np.linalg.norm(horizontal) / np.linalg.norm(through)
+        assert cos > np.cos(np.deg2rad(2.0))
+        assert abs(R[2, 0]) < np.sin(np.deg2rad(11.0))  # the finger row level, rolled <= 10 deg

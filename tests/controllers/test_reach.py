@@ -11,17 +11,21 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from controllers.arm_path import execute_path, plan_arm_path
+from controllers.arm_path import ArmPath, execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
 from controllers.delivery import SET_DOWN_HOVER, plan_delivery, reachable_turn
 from controllers.errors import ReachError
 from controllers.fine_reach import fine_reach
 from controllers.grasp.objects import paper_object
 from controllers.reach import (
+    LATERAL_GOAL_FALLBACKS,
+    LATERAL_TILTS,
     PRESHAPE,
     ReachTarget,
+    choice_reason,
     goal_poses,
     lateral_fallback_poses,
+    lateral_frame,
     plan_coarse_reach,
     solve_goal,
 )
@@ -363,3 +367,78 @@ def test_a_lateral_goal_the_forearm_blocks_falls_back_to_a_nearer_or_higher_palm
     np.testing.assert_allclose(palm, plan.goal.palm_position, atol=0.005)
     radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
     assert R[:, 2] @ (radial / np.linalg.norm(radial)) > np.cos(np.deg2rad(5.0))
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 15.0, 45.0])
+@pytest.mark.parametrize("roll_deg", [0.0, 10.0, -30.0])
+def test_a_lateral_frame_faces_along_the_radial_pitched_down_with_the_finger_row_level(
+    tilt_deg: float, roll_deg: float
+) -> None:
+    """``lateral_frame``: a rotation; the approach axis (z) in the vertical plane of the radial,
+    ``tilt`` below the horizontal; unrolled, the finger row (x) horizontal and hand y up; rolled,
+    hand y turned by ``roll`` about z towards the unrolled x."""
+    radial = np.array([np.cos(0.7), np.sin(0.7), 0.0])
+    tilt, roll = np.deg2rad(tilt_deg), np.deg2rad(roll_deg)
+    R = lateral_frame(radial, tilt, roll)
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    z = R[:, 2]
+    assert np.degrees(np.arcsin(-z[2])) == pytest.approx(tilt_deg)
+    assert np.cross(radial, z) @ np.array([0.0, 0.0, 1.0]) == pytest.approx(0.0, abs=1e-12)
+    assert z[:2] @ radial[:2] > 0
+    level = lateral_frame(radial, tilt)
+    assert level[2, 0] == pytest.approx(0.0, abs=1e-12) and level[2, 1] > 0
+    turned = np.degrees(np.arctan2(level[:, 0] @ R[:, 1], level[:, 1] @ R[:, 1]))
+    assert turned == pytest.approx(roll_deg)
+
+
+def test_a_block_too_near_the_base_for_a_level_lateral_goal_is_approached_pitched_down() -> None:
+    """Random scene 26 (1 block, 0.49 m from the arm's base): at every level lateral goal (the
+    nominal one and the level ``LATERAL_GOAL_FALLBACKS``) the 5-joint arm's hand hits its own
+    forearm; pitched down by the first of ``LATERAL_TILTS`` the wrist unfolds, and the plan ends
+    there: a collision-free posture (checked independently) with the palm at its goal, the axis
+    along the radial pitched 15 deg down."""
+    world = World.build(episode_scene("random", 26, 1))
+    target = ReachTarget.from_world(world, "irregular_hexagon_0")
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    checker = CollisionChecker(world, hand_q=PRESHAPE)
+    level = goal_poses(target, base)["lateral"] + [
+        pose
+        for pose, (_, _, tilt) in zip(
+            lateral_fallback_poses(target, base), LATERAL_GOAL_FALLBACKS, strict=True
+        )
+        if tilt == 0.0
+    ]
+    assert solve_goal(checker, "lateral", level, world.arm_qpos()) is None
+    plan = plan_coarse_reach(world, target, approaches=("lateral",))
+    assert plan.found and plan.approach == "lateral" and plan.goal is not None
+    assert not CollisionChecker(world, hand_q=PRESHAPE).collides(plan.goal.q)
+    palm, R = checker.palm_pose(plan.goal.q)
+    np.testing.assert_allclose(palm, plan.goal.palm_position, atol=0.005)
+    radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
+    radial /= np.linalg.norm(radial)
+    pitch = np.arcsin(-R[2, 2])
+    assert pitch == pytest.approx(LATERAL_TILTS[0], abs=np.deg2rad(2.0))
+    horizontal = R[:, 2] - R[2, 2] * np.array([0.0, 0.0, 1.0])
+    assert horizontal @ radial / np.linalg.norm(horizontal) > np.cos(np.deg2rad(5.0))
+
+
+def test_auto_takes_a_level_top_path_over_a_shorter_pitched_lateral_one() -> None:
+    """Random scene 26: with ``auto`` both approaches have a path, the lateral one to a goal
+    only pitched down; the top approach is taken. Where a pitched lateral path is the shorter,
+    the log says the level goal was taken first, not that it was the shortest."""
+    world = World.build(episode_scene("random", 26, 1))
+    target = ReachTarget.from_world(world, "irregular_hexagon_0")
+    plan = plan_coarse_reach(world, target)
+    assert plan.found and plan.approach == "top"
+    assert plan.candidates["lateral"].found
+    assert plan.goal is not None and plan.goal.pitch == pytest.approx(np.pi / 2, abs=0.01)
+
+    def path(length: float) -> ArmPath:
+        return ArmPath(True, np.array([np.zeros(5), [length, 0, 0, 0, 0]]), "", None, 0, 0, 0, 0)
+
+    shorter_lateral = {"top": path(2.0), "lateral": path(1.0)}
+    reason = choice_reason(("top", "lateral"), shorter_lateral, (), "top")
+    assert reason.startswith("a level goal first") and "lateral 1.00 rad" in reason
+    longer_lateral = {"top": path(2.0), "lateral": path(3.0)}
+    assert choice_reason(("top", "lateral"), longer_lateral, (), "top").startswith("the shortest")

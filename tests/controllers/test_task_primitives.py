@@ -161,6 +161,16 @@ def test_reachability_refuses_pads_too_close_and_unreachable_contacts(hovering) 
     verdict = check_reach(world, prism, points, normals)
     assert not verdict.reachable and "apart" in verdict.reason
     assert verdict.min_spacing < MIN_PAD_SPACING
+    # contacts free to slide up and down their faces, the two close ones given above the top
+    # and below the bottom: the pads' spacing is measured where the fingers take them, at the
+    # heights taken (a lateral hand's fingers stack on one face), not at the heights given
+    given = np.column_stack([xy, [prism.top + 0.03, prism.bottom - 0.02, z[2], z[3]]])
+    slid = check_reach(world, prism, given, normals, slide=True)
+    assert slid.heights is not None
+    assert np.all((slid.heights > prism.bottom) & (slid.heights < prism.top))
+    pads = np.column_stack([xy, slid.heights]) + robot.PAD_RADIUS * normals
+    gaps = np.linalg.norm(pads[:, None] - pads[None, :], axis=-1)
+    assert slid.min_spacing == pytest.approx(gaps[np.triu_indices(4, 1)].min())
     far = points + np.array([0.3, 0.0, 0.0])  # 30 cm away: no finger reaches with the arm held
     verdict = check_reach(world, prism, far, normals, check_spacing=False)
     assert not verdict.reachable and "cannot reach" in verdict.reason

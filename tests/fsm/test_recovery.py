@@ -104,8 +104,13 @@ def test_a_finger_fine_reach_leaves_far_off_gives_up_with_its_reason(tmp_path: P
     fails naming the finger and its distance ("fingers cannot reach"). On the servo hand, where
     the scene was found: on the tendon hand Fine Reach ends with ff, mf and rf "stopped on
     touch" 36-69 mm from their surface points, never giving up, and the episode fails later in
-    Posture Control ("contact unreachable after posture retries: ... ff 40 mm short")."""
-    result = _random_episode(4, tmp_path, approach="lateral", block_range=(1, 3), hand="servo")
+    Posture Control ("contact unreachable after posture retries: ... ff 40 mm short"). With the
+    pinch pre-shape's contacts (``lateral_contacts="pinch"``), where the scene was found: from
+    sampled contacts, the default since, the hand reaches the triangle and delivers it."""
+    pinch = dataclasses.replace(DEFAULT_CONFIG, lateral_contacts="pinch")
+    result = _random_episode(
+        4, tmp_path, pinch, approach="lateral", block_range=(1, 3), hand="servo"
+    )
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
     assert not result.success and result.failure == "fingers cannot reach", log
     gave_up = re.match(r"(\w\w) stayed (\d+) mm from its surface point", result.failure_detail)
