@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.grasp.polygon import Polygon
-from controllers.reach import LATERAL_DEPTH, ReachTarget, lateral_frame
+from controllers.reach import LATERAL_DEPTH, ReachTarget, axis_pitch, lateral_frame
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
 from hand_sim.world import World
@@ -174,7 +174,7 @@ def lateral_poses(
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
     # the coarse reach's pitch of the approach axis below the horizontal (0 but where the arm
     # reaches a lateral goal only pitched, controllers.reach.LATERAL_TILTS)
-    tilt = float(np.arcsin(np.clip(-coarse_rotation[2, 2], -1.0, 1.0)))
+    tilt = axis_pitch(coarse_rotation)
     near = float(((target.footprint() - centre[:2]) @ axis[:2]).min())
     if arcs is not None:
         ends = place_polygon(

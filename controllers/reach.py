@@ -132,8 +132,13 @@ class ApproachGoal:
     @property
     def pitch(self) -> float:
         """The approach axis's angle below the horizontal (rad): pi/2 for a top goal, 0 for a
-        level lateral one."""
-        return float(np.arcsin(np.clip(-self.palm_rotation[2, 2], -1.0, 1.0)))
+        level lateral one (:func:`axis_pitch`)."""
+        return axis_pitch(self.palm_rotation)
+
+
+def axis_pitch(rotation: NDArray[np.float64]) -> float:
+    """The angle (rad) below the horizontal of a palm rotation's approach axis (its z column)."""
+    return float(np.arcsin(np.clip(-rotation[2, 2], -1.0, 1.0)))
 
 
 @dataclass(frozen=True, eq=False)
