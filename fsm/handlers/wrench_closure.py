@@ -21,7 +21,14 @@ from controllers.hand_reach import (
     reachable_contacts,
 )
 from fsm.context import Episode
-from fsm.handlers.common import contact_arcs, contact_points, reach_query, reach_start, slides
+from fsm.handlers.common import (
+    contact_arcs,
+    contact_points,
+    reach_query,
+    reach_start,
+    sampled_preshape,
+    slides,
+)
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim import robot
@@ -204,14 +211,18 @@ def _lateral_3d(ep: Episode) -> str:
 
 def _remember_if_reachable(ep: Episode) -> None:
     """A lateral grasp's starting contacts, kept as the last reachable ones when the hand
-    reaches them (``ep.last_reachable``)."""
+    reaches them (``ep.last_reachable``). After a sampled pre-shape, its own contacts: the
+    planar controller's start keeps the pads a pad spacing apart in the plane, which moves
+    fingers stacked on one face (apart in height) by up to 0.6 rad of contact coordinate, to
+    contacts the hand does not reach (single_square, single_trapezoid)."""
     syn = ep.synthesis
     query = reach_query(ep)
+    theta = ep.preshape_contacts.theta if sampled_preshape(ep) else syn.theta
     contacts, reach = reachable_contacts(
         ep.world,
         query.prism,
         query.target,
-        syn.theta,
+        theta,
         model=query.planning,
         qpos=reach_start(ep),
         check_spacing=False,
@@ -221,7 +232,7 @@ def _remember_if_reachable(ep: Episode) -> None:
         heights=query.heights,
     )
     if reach.reachable:
-        ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
+        ep.last_reachable = (theta, contacts, reach, syn.steps)
         _take_heights(ep, contacts)
 
 

@@ -268,3 +268,24 @@ def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -
         cos = horizontal @ through / np.linalg.norm(horizontal) / np.linalg.norm(through)
         assert cos > np.cos(np.deg2rad(2.0))
         assert abs(R[2, 0]) < np.sin(np.deg2rad(11.0))  # the finger row level, rolled <= 10 deg
+
+
+@pytest.mark.e2e
+def test_a_sampled_grasp_the_controller_moves_out_of_reach_is_taken_where_the_hand_took_it(
+    tmp_path: Path,
+) -> None:
+    """single_square, --approach lateral: the sampled pre-shape stacks fingers on one face (a
+    pad spacing apart in height, not in the plane); the planar controller's first steps push
+    them apart in the plane until a pad is turned 80 deg off its face, out of the hand's reach.
+    Wrench Closure stops at the pre-shape's own contacts, which the hand reached and which pass
+    Eq. 13, and the block is delivered, judged physically."""
+    options = EpisodeOptions(scene="single_square", approach="lateral", record=False, out=tmp_path)
+    result = run_episode(options)
+    closure = next(v for v in result.visits if v.state == "Wrench Closure")
+    assert "stopped at step 0's contacts, the last the hand reached" in closure.reason
+    assert result.success, result.failure_detail
+    (cycle,) = result.cycles
+    assert cycle["s_g"] <= SUCCESS_THRESHOLD
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
