@@ -334,7 +334,6 @@ def fine_reach(
             world,
             nxt,
             optimize=False,
-            joints="arm+hand",
             reach_iterations=IK_ITERATIONS,
             model=model,
             avoid_collisions=model is not None,
