@@ -27,6 +27,9 @@ from hand_sim import robot
 from hand_sim.geometry import place_polygon
 from hand_sim.world import World
 
+#: The wrist roll (rad) between neighbouring lateral palm poses about the approach axis.
+LATERAL_ROLL_STEP = float(np.deg2rad(10.0))
+
 
 @dataclass(frozen=True)
 class PalmPoseParams:
@@ -48,7 +51,14 @@ class PalmPoseParams:
     #: y turned ``lateral_rolls`` (rad) from vertical about the approach axis (a roll moves the
     #: middle finger and the thumb off the block's centre line, towards the faces they take).
     lateral_gaps: tuple[float, ...] = (0.03, 0.035, 0.04)
-    lateral_rolls: tuple[float, ...] = tuple(np.deg2rad([0.0, 10.0, -10.0]))
+    lateral_rolls: tuple[float, ...] = (0.0, LATERAL_ROLL_STEP, -LATERAL_ROLL_STEP)
+    #: Wrist rolls (rad) a lateral pre-shape's sampled contacts are searched at where none is
+    #: taken at ``lateral_rolls``: the hand upside down (180, 170 deg: the thumb on the other
+    #: side of the block) and its finger row vertical (+-90 deg). Chosen from the best sampled
+    #: S_G at ten rolls on the 29 of random lateral scenes 0-99 that had no pre-shape: 6 had a
+    #: grasp of S_G <= 0.4 only at these rolls (docs/task_cycle.md, "Eq. 13's gate bounds the
+    #: lateral grasp"). Each is searched with its neighbours +-LATERAL_ROLL_STEP afterwards.
+    lateral_more_rolls: tuple[float, ...] = tuple(np.deg2rad([180.0, 170.0, 90.0, -90.0]))
     lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
     #: The palm poses a lateral pre-shape searches for contacts among the sampled finger
     #: postures (:mod:`controllers.lateral_grasp`): gaps (m) and shifts (m) as above, with the

@@ -175,6 +175,9 @@ class Episode:
     #: the hand posture (16,) that took the sampled pre-shape's contacts in its reach test: the
     #: hand IK's start of the reach tests that follow (None without a sampled pre-shape)
     preshape_hand_q: Any | None = None
+    #: the wrist rolls (rad) about the approach axis Posture Control's lateral search keeps
+    #: after a sampled pre-shape taken at ``PalmPoseParams.lateral_more_rolls``; None: its own
+    preshape_rolls: tuple[float, ...] | None = None
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
     heights_searched: Any | None = None
@@ -213,6 +216,7 @@ class Episode:
         self.coarse = self.synthesis = self.contacts = self.reach = self.grip = None
         self.top_poses = None
         self.preshape_hand_q = None
+        self.preshape_rolls = None
         self.posture_mode = "hold"
         return self.record
 

@@ -12,10 +12,12 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from fsm.config import DEFAULT_CONFIG
 from fsm.context import (
     APPROACH_CHOICES,
     CONTROLLERS,
@@ -102,6 +104,33 @@ def add_hand(ap: argparse.ArgumentParser) -> None:
     )
 
 
+def lateral_gate(text: str) -> float:
+    """``--lateral-gate S_G``: a positive, finite S_G (Eq. 13)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(
+            f"must be a positive S_G (Eq. 13; the paper's, the default, is "
+            f"{DEFAULT_CONFIG.lateral_gate}), e.g. 0.6, got {text!r}"
+        )
+    return value
+
+
+def add_lateral_gate(ap: argparse.ArgumentParser) -> None:
+    """``--lateral-gate``, as ``fsm.run`` and ``experiments.bench`` take it."""
+    ap.add_argument(
+        "--lateral-gate",
+        type=lateral_gate,
+        default=DEFAULT_CONFIG.lateral_gate,
+        metavar="S_G",
+        help="S_G (Eq. 13) a lateral grasp must reach; the default is the paper's. "
+        "A study setting: above it, a lateral pre-shape scoring up to the gate "
+        "is taken only where none scores the paper's (docs/task_cycle.md)",
+    )
+
+
 def parse_cycles(text: str) -> int | None:
     """``--cycles N|all``: N blocks one after another (1..MAX_CYCLES), or None for all."""
     if text == "all":
@@ -181,6 +210,7 @@ def parser() -> ArgumentParser:
         "(default: the shipped ones)",
     )
     add_hand(ap)
+    add_lateral_gate(ap)
     ap.add_argument("--no-record", action="store_true", help="skip the .rrd recording (faster)")
     return ap
 
@@ -282,6 +312,7 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         record=not args.no_record,
         models=None if args.models is None else Path(args.models),
         hand=args.hand,
+        config=replace(DEFAULT_CONFIG, lateral_gate=args.lateral_gate),
     )
 
 

@@ -47,6 +47,7 @@ from fsm.run import (
     MAX_CYCLES,
     add_controller_and_approach,
     add_hand,
+    add_lateral_gate,
     add_place_fallback,
     parse_cycles,
 )
@@ -79,6 +80,7 @@ RESUME_KEYS = (
     "cycles",
     "place_fallback",
     "hand",
+    "lateral_gate",
 )
 #: Settings of a bench folder written before they existed (what those benches ran: the planar
 #: grasp model, one cycle, and a place point the hand could not set down at moved to a free slot
@@ -89,6 +91,7 @@ SETTING_DEFAULTS = {
     "cycles": "1",
     "place_fallback": "a free slot, unreported (old rule)",
     "hand": "servo",
+    "lateral_gate": 0.4,
 }
 #: The command-line flag of a setting whose name is not the flag's.
 FLAG_OF = {"grasp_model": "model"}
@@ -168,6 +171,7 @@ def parser() -> ArgumentParser:
     )
     add_place_fallback(ap)
     add_hand(ap)
+    add_lateral_gate(ap)
     ap.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),
@@ -313,6 +317,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "cycles": "all" if cycles is None else str(cycles),
         "place_fallback": args.place_fallback,
         "hand": args.hand,
+        "lateral_gate": args.lateral_gate,
     }
     done = _check_resume(out, settings, args.resume)
     finished = {int(line["seed"]) for line in done}
@@ -329,6 +334,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             cycles=cycles,
             place_fallback=args.place_fallback,
             hand=args.hand,
+            lateral_gate=args.lateral_gate,
         )
         for s in args.seeds
         if s not in finished

@@ -19,7 +19,7 @@ import os
 import sys
 import tempfile
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +69,7 @@ class Job:
     cycles: int | None = 1  #: blocks picked one after another (None: clear the table)
     place_fallback: str = "none"  #: as fsm.run's --place-fallback
     hand: str = "tendon"  #: as fsm.run's --hand
+    lateral_gate: float = 0.4  #: as fsm.run's --lateral-gate
 
 
 @dataclass(frozen=True)
@@ -133,6 +134,7 @@ def run_job(job: Job) -> JobResult:
 def _episode(job: Job, *, record: bool) -> tuple[dict[str, Any], bytes | None]:
     """One run of ``job``'s episode in a temporary folder: its summary (with the options the
     bench varies) and, when ``record`` and it was written, its recording's bytes."""
+    from fsm.config import DEFAULT_CONFIG
     from fsm.context import DEFAULT_GRASP_MODEL, EpisodeOptions, out_paths
     from fsm.machine import run_episode
 
@@ -150,6 +152,7 @@ def _episode(job: Job, *, record: bool) -> tuple[dict[str, Any], bytes | None]:
             record=record,
             models=None if job.models is None else Path(job.models),
             hand=job.hand,
+            config=replace(DEFAULT_CONFIG, lateral_gate=job.lateral_gate),
         )
         rrd_path, summary_path = out_paths(options.out)
         extra: dict[str, Any] = {}

@@ -166,6 +166,8 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--place-fallback {settings['place_fallback']}")
     if settings.get("models"):
         parts.append(f"--models {settings['models']}")
+    if settings.get("lateral_gate", 0.4) != 0.4:
+        parts.append(f"--lateral-gate {settings['lateral_gate']}")
     # always written: the default hand changed (servo before, tendon since)
     parts.append(f"--hand {settings.get('hand', 'servo')}")
     return " ".join(parts)

@@ -5,6 +5,8 @@ lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -17,6 +19,7 @@ from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerCont
 from controllers.lateral_grasp import SampledGrasp, sampled_lateral_grasp
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
+    LATERAL_ROLL_STEP,
     PalmPose,
     PoseSetting,
     face_arcs,
@@ -177,20 +180,27 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     afterwards (:func:`contact_arcs`), and where no pose has such a grasp the pinch pre-shape's
     (the surface points nearest its fingertips, kept a pad spacing apart on the side arcs);
     "sampled", the pinch's first and the sampled ones where no pose reaches those; "pinch", the
-    pinch's only. When none is reached, the pinch's pose of least reach load. The contacts, when
-    the hand reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the
-    grasp controller. Returns what was done, for the log, or None when no pose is approached
-    without collision."""
+    pinch's only. When none is reached and ``config.lateral_gate`` is above Eq. 13's 0.4 (a
+    study's), the sampled grasps up to that gate; then the pinch's pose of least reach load,
+    taken all the same. The contacts, when the hand reaches them there, are kept
+    (``ep.preshape_contacts``) for Fine Reach and the grasp controller. Returns what was done,
+    for the log, or None when no pose is approached without collision."""
     ep.preshape_contacts = None
     ep.preshape_hand_q = None
+    ep.preshape_rolls = None
     if ep.config.lateral_contacts == "sampled-first":
-        done = _sampled_preshape(ep, skip)
+        done = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
         if done is not None:
             return done
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
-        done = _sampled_preshape(ep, skip)
+        done = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
+        if done is not None:
+            return done
+    if not reached and ep.config.lateral_gate > SUCCESS_THRESHOLD:
+        # a study's wider gate (TaskConfig.lateral_gate): a grasp above Eq. 13's 0.4, only here
+        done = _sampled_preshape(ep, skip, ep.config.lateral_gate)
         if done is not None:
             return done
     if not pinch.found:
@@ -201,15 +211,50 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     return f"pinch pre-shape, {pinch.label} (reach load {pinch.load:.2f})"
 
 
-def _sampled_preshape(ep: Episode, skip: int) -> str | None:
-    """:func:`lateral_preshape` from sampled contacts; None when no pose has a sampled grasp
-    that the hand reaches and approaches without collision."""
+def _sampled_preshape(ep: Episode, skip: int, gate: float) -> str | None:
+    """:func:`lateral_preshape` from sampled contacts of S_G at most ``gate`` (Eq. 13); None
+    when no pose has such a sampled grasp that the hand reaches and approaches without
+    collision. The palm poses at the default wrist rolls are searched first; only where none
+    is taken, again with the poses at ``lateral_more_rolls`` after them (the hand upside down
+    or its finger row vertical), whose rolls Posture Control then keeps
+    (``ep.preshape_rolls``)."""
     params = ep.config.palm_pose
+    grasps: dict[int, SampledGrasp] = {}
+    rolls_of: dict[int, tuple[float, ...]] = {}
+    poses = _sampled_poses(ep, params.lateral_rolls, gate, grasps)
+    found = _search_sampled(ep, poses, grasps, skip) if poses else None
+    if (found is None or not found.found) and params.lateral_more_rolls:
+        for roll in params.lateral_more_rolls:
+            turned = (roll, roll + LATERAL_ROLL_STEP, roll - LATERAL_ROLL_STEP)
+            # searched after every pose at the default rolls (a group of their own)
+            for pose in _sampled_poses(ep, (roll,), gate, grasps, group_offset=1.0):
+                rolls_of[id(pose)] = turned
+                poses.append(pose)
+        found = _search_sampled(ep, poses, grasps, skip) if poses else None
+    if found is None or not found.found:
+        return None
+    approach(block_site(ep), found.approach)
+    ep.preshape_contacts = found.contacts
+    ep.preshape_hand_q = found.hand_q
+    ep.preshape_rolls = rolls_of.get(id(poses[found.start]))
+    return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})"
+
+
+def _sampled_poses(
+    ep: Episode,
+    rolls: tuple[float, ...],
+    gate: float,
+    grasps: dict[int, SampledGrasp],
+    group_offset: float = 0.0,
+) -> list[PalmPose]:
+    """The palm poses beside the block at wrist ``rolls`` whose sampled grasp
+    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`) scores at most ``gate``, the hand
+    in the grasp's posture; each pose's grasp goes into ``grasps`` (by the pose's id)."""
+    params = replace(ep.config.palm_pose, lateral_rolls=rolls)
     query = reach_query(ep)
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
     hand_adr = robot.hand_qpos_addresses(ep.world.model)
     pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
-    grasps: dict[int, SampledGrasp] = {}
     poses: list[PalmPose] = []
     for pose in lateral_poses(where, params, side_arcs(ep), sampled=True):
         grasp = sampled_lateral_grasp(
@@ -221,17 +266,25 @@ def _sampled_preshape(ep: Episode, skip: int) -> str | None:
             pose_xy,
             query.squeeze,
         )
-        if grasp is None or grasp.s_g > SUCCESS_THRESHOLD:
+        if grasp is None or grasp.s_g > gate:
             continue  # only a start that is already a grasp (Eq. 13)
         qpos = pose.qpos.copy()
         qpos[hand_adr] = grasp.hand_q
-        shaped = PalmPose(qpos, pose.group, f"{pose.label}, sampled contacts S_G {grasp.s_g:.3f}")
+        label = f"{pose.label}, sampled contacts S_G {grasp.s_g:.3f}"
+        shaped = PalmPose(qpos, pose.group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
-    if not poses:
-        return None
-    found = search_poses(
-        query,
+    return poses
+
+
+def _search_sampled(
+    ep: Episode, poses: list[PalmPose], grasps: dict[int, SampledGrasp], skip: int
+) -> PalmPoseResult:
+    """The first of ``poses`` (after ``skip``) from which the hand reaches its sampled grasp's
+    contacts at their heights and that is approached without collision
+    (:func:`controllers.palm_pose.search_poses`)."""
+    return search_poses(
+        reach_query(ep),
         poses,
         lambda pose: grasps[id(pose)].theta,
         lambda qpos, contacts: plan_approach(ep, qpos, contacts),
@@ -240,12 +293,6 @@ def _sampled_preshape(ep: Episode, skip: int) -> str | None:
         skip=skip,
         heights_of=lambda pose: grasps[id(pose)].points[:, 2],
     )
-    if not found.found:
-        return None
-    approach(block_site(ep), found.approach)
-    ep.preshape_contacts = found.contacts
-    ep.preshape_hand_q = found.hand_q
-    return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})"
 
 
 def _pinch_search(ep: Episode, skip: int) -> PalmPoseResult:

@@ -5,6 +5,7 @@ virtual contacts within the fingers' reach (from Wrench Closure) by the palm-pos
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 
@@ -163,6 +164,8 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     rotation = ep.coarse.goal.palm_rotation
     where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
     if slides(ep):
+        if ep.preshape_rolls is not None:  # the hand turned as its pre-shape took it
+            params = replace(params, lateral_rolls=ep.preshape_rolls)
         poses = lateral_poses(where, params, side_arcs(ep), hand=ep.preshape_hand_q)
         return _posture_among(ep, poses)
     query = reach_query(ep)

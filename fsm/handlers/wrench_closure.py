@@ -7,6 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.fine_reach import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
+from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.session import GraspSynthesis
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.grasp.session_lateral import LateralSynthesis3D
@@ -170,6 +171,7 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done:
             break
     score = syn.finish()
+    gate = _gate(ep)
     # the final contacts (at their heights in 3-D) with their S_G (3-D S_G in 3-D)
     ep.recorder.log_synthesis(
         SynthesisRecord(
@@ -189,8 +191,8 @@ def wrench_closure(ep: Episode) -> Step:
         raise TaskFailedError(
             Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
         )
-    if not score.success:
-        what = f"S_G {score.s_g:.3f} > 0.4" if score.feasible else "no feasible grasp (S_G LP)"
+    if not (score.feasible and score.s_g <= gate):
+        what = f"S_G {score.s_g:.3f} > {gate:g}" if score.feasible else "no feasible grasp (S_G LP)"
         raise TaskFailedError(Failure.GRASP_NOT_CONVERGED, f"converged to a weak grasp: {what}")
     return Step(
         State.GRASP_OBJECT,
@@ -257,4 +259,10 @@ def _last_reachable_grasp(ep: Episode) -> bool:
         return False
     theta, _, reach, _ = ep.last_reachable
     score = ep.synthesis.score_at(theta)
-    return bool(score.success) and reach.min_spacing >= MIN_PAD_SPACING
+    return score.feasible and score.s_g <= _gate(ep) and reach.min_spacing >= MIN_PAD_SPACING
+
+
+def _gate(ep: Episode) -> float:
+    """The S_G a grasp must reach (Eq. 13): 0.4, or a lateral grasp's
+    ``config.lateral_gate`` (a study's setting, 0.4 by default)."""
+    return ep.config.lateral_gate if slides(ep) else SUCCESS_THRESHOLD

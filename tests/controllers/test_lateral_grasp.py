@@ -6,6 +6,7 @@ test's own hand IK), and a whole lateral episode from it is judged physically.""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
@@ -21,7 +22,12 @@ from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
 from controllers.hand_reach import CONTACT_SEPARATION, TOP_MARGIN, check_reach
 from controllers.lateral_grasp import LateralSampling, sampled_lateral_grasp
-from controllers.palm_candidates import PoseSetting, face_arcs, lateral_poses
+from controllers.palm_candidates import (
+    DEFAULT_PALM_POSE,
+    PoseSetting,
+    face_arcs,
+    lateral_poses,
+)
 from controllers.reach import PRESHAPE, ReachTarget, goal_poses, lateral_frame, solve_goal
 from fsm.config import TaskConfig
 from fsm.context import EpisodeOptions
@@ -244,30 +250,116 @@ def test_an_unknown_source_of_lateral_contacts_is_refused() -> None:
         TaskConfig(lateral_contacts="sample")
 
 
+@pytest.mark.e2e
+def test_a_wider_lateral_gate_takes_a_thumb_against_three_fingers_and_delivers(
+    tmp_path: Path,
+) -> None:
+    """Random scene 91 (a rectangle alone), --approach lateral: beside it the hand's sampled
+    grasps put the thumb against three fingers on parallel faces, S_G 0.50 (Eq. 13), above
+    the paper's 0.4, so the default gate leaves it no pre-shape. With ``lateral_gate`` 0.6
+    (a study setting) the pre-shape takes such a grasp, the hand holds the block at the lift,
+    and it is delivered, judged physically; the summary records the gate."""
+    config = replace(TaskConfig(), lateral_gate=0.6)
+    options = EpisodeOptions(
+        scene="random",
+        seed=91,
+        blocks=1,
+        approach="lateral",
+        record=False,
+        out=tmp_path,
+        config=config,
+    )
+    result = run_episode(options)
+    coarse = result.visits[1].reason
+    assert "sampled pre-shape" in coarse, coarse
+    taken = float(coarse.split("sampled contacts S_G ")[1].split()[0])
+    assert SUCCESS_THRESHOLD < taken <= 0.6
+    assert result.success, result.failure_detail
+    (cycle,) = result.cycles
+    assert SUCCESS_THRESHOLD < cycle["s_g"] <= 0.6
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["options"]["config"]["lateral_gate"] == 0.6
+
+
+@pytest.mark.parametrize("gate", [0.0, -0.4, float("nan"), float("inf")])
+def test_a_lateral_gate_that_is_not_a_positive_s_g_is_refused(gate: float) -> None:
+    """``TaskConfig.lateral_gate`` is the S_G (Eq. 13) a lateral grasp must reach: zero, a
+    negative, NaN or an infinite gate is an error naming the paper's, not a gate that passes
+    every grasp or none."""
+    with pytest.raises(ValueError, match=r"lateral_gate must be a positive S_G.*0\.4"):
+        TaskConfig(lateral_gate=gate)
+
+
 def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -> None:
     """Where the coarse reach's lateral goal is pitched down (controllers.reach.LATERAL_TILTS),
     every palm pose of the pre-shape's search is pitched the same (forward kinematics of its
     arm posture), faces the block along the radial line through the palm, and keeps the finger
     row level up to its roll."""
     world, target, _, _ = square
-    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
-    radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
-    radial /= np.linalg.norm(radial)
+    base, radial = _radial(world, target)
     tilt = np.deg2rad(15.0)
     poses = lateral_poses(PoseSetting(world, world.model, target, lateral_frame(radial, tilt)))
     assert len(poses) >= 10
+    for R, through in _palm_frames(world, base, poses):
+        assert np.arcsin(-R[2, 2]) == pytest.approx(tilt, abs=np.deg2rad(1.5))
+        assert _off_radial_deg(R, through) < 2.0
+        assert abs(R[2, 0]) < np.sin(np.deg2rad(11.0))  # the finger row level, rolled <= 10 deg
+
+
+def _radial(world: World, target: ReachTarget) -> tuple[np.ndarray, np.ndarray]:
+    """The arm base's (x, y) and the unit radial direction from it to the block."""
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    radial = np.array([*(np.asarray(target.position_xy) - base), 0.0])
+    return base, radial / np.linalg.norm(radial)
+
+
+def _palm_frames(world: World, base: np.ndarray, poses: list) -> list:
+    """(palm rotation, (x, y, 0) from the base to the palm) of each pose (forward kinematics)."""
     data = mujoco.MjData(world.model)
     palm = world.model.body(robot.hand_name(robot.PALM_BODY)).id
+    out = []
     for pose in poses:
         data.qpos[:] = pose.qpos
         mujoco.mj_kinematics(world.model, data)
-        R = data.xmat[palm].reshape(3, 3)
-        assert np.arcsin(-R[2, 2]) == pytest.approx(tilt, abs=np.deg2rad(1.5))
         through = np.array([*(data.xpos[palm][:2] - base), 0.0])
-        horizontal = R[:, 2] * np.array([1.0, 1.0, 0.0])
-        cos = horizontal @ through / np.linalg.norm(horizontal) / np.linalg.norm(through)
-        assert cos > np.cos(np.deg2rad(2.0))
-        assert abs(R[2, 0]) < np.sin(np.deg2rad(11.0))  # the finger row level, rolled <= 10 deg
+        out.append((data.xmat[palm].reshape(3, 3).copy(), through))
+    return out
+
+
+def _off_radial_deg(R: np.ndarray, through: np.ndarray) -> float:
+    """Angle (deg) between the approach axis's horizontal part and the radial line through the
+    palm."""
+    horizontal = R[:, 2] * np.array([1.0, 1.0, 0.0])
+    cos = horizontal @ through / np.linalg.norm(horizontal) / np.linalg.norm(through)
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+@pytest.mark.parametrize("roll_deg", [180.0, 90.0, -90.0])
+def test_palm_poses_at_the_more_rolls_turn_the_hand_about_its_approach_axis(
+    square, roll_deg: float
+) -> None:
+    """The wider wrist rolls a sampled pre-shape searches where none is taken at the default
+    ones (``PalmPoseParams.lateral_more_rolls``): at 180 deg the arm holds the hand upside down
+    (hand y pointing down: the thumb on the other side of the block), at +-90 deg its finger
+    row vertical; the approach axis stays level and radial (forward kinematics of each pose's
+    arm posture)."""
+    world, target, _, _ = square
+    params = replace(DEFAULT_PALM_POSE, lateral_rolls=(np.deg2rad(roll_deg),))
+    assert np.deg2rad(roll_deg) in DEFAULT_PALM_POSE.lateral_more_rolls
+    base, radial = _radial(world, target)
+    setting = PoseSetting(world, world.model, target, lateral_frame(radial, 0.0))
+    poses = lateral_poses(setting, params, sampled=True)
+    assert len(poses) >= 5
+    for R, through in _palm_frames(world, base, poses):
+        assert abs(R[2, 2]) < np.sin(np.deg2rad(2.0))  # the approach axis level
+        assert _off_radial_deg(R, through) < 2.0
+        if roll_deg == 180.0:
+            assert R[2, 1] < -np.cos(np.deg2rad(2.0))  # hand y down
+        else:
+            assert abs(R[2, 0]) > np.cos(np.deg2rad(2.0))  # the finger row vertical
 
 
 @pytest.mark.e2e

@@ -21,6 +21,7 @@ import pytest
 from scipy.stats import binomtest
 
 from experiments.bench import cli as bench
+from experiments.bench import report as bench_report
 from experiments.bench.jobs import (
     CRASHED,
     BenchError,
@@ -243,6 +244,8 @@ def test_wilson_interval_textbook_value() -> None:
         (["--workers", "0"], "--workers"),
         (["--controller", "xx"], "--controller"),
         (["--hand", "banana"], "--hand"),
+        (["--lateral-gate", "0"], "positive S_G"),
+        (["--lateral-gate", "wide"], "--lateral-gate"),
         (["--out", ""], "--out"),
     ],
 )
@@ -265,6 +268,23 @@ def test_the_hand_is_a_setting_of_the_bench_and_of_every_episode(tmp_path: Path)
     plan = bench.plan_from_args(argv)
     assert plan.settings["hand"] == "servo" and {j.hand for j in plan.jobs} == {"servo"}
     assert "hand" in bench.RESUME_KEYS and bench.SETTING_DEFAULTS["hand"] == "servo"
+
+
+def test_the_lateral_gate_is_a_setting_of_the_bench_and_of_every_episode(
+    tmp_path: Path, capsys
+) -> None:
+    """``--lateral-gate`` reaches every job and the bench's settings (a resume compares it, a
+    folder from before it was a setting read as the paper's gate), and the report's command
+    names it when it is not the paper's."""
+    plan = bench.plan_from_args([*QUICK, "--seeds", "0:2", "--out", str(tmp_path / "o")])
+    assert plan.settings["lateral_gate"] == 0.4 and {j.lateral_gate for j in plan.jobs} == {0.4}
+    argv = [*QUICK, "--seeds", "0:2", "--lateral-gate", "0.6", "--out", str(tmp_path / "g")]
+    plan = bench.plan_from_args(argv)
+    assert plan.settings["lateral_gate"] == 0.6 and {j.lateral_gate for j in plan.jobs} == {0.6}
+    assert "lateral_gate" in bench.RESUME_KEYS and bench.SETTING_DEFAULTS["lateral_gate"] == 0.4
+    assert "--lateral-gate 0.6" in bench_report._command(plan.settings, range(0, 2))
+    paper = {**plan.settings, "lateral_gate": 0.4}
+    assert "--lateral-gate" not in bench_report._command(paper, [0])
 
 
 def test_a_controller_without_models_is_refused_before_anything_runs(tmp_path, capsys) -> None:

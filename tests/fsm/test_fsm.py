@@ -19,7 +19,7 @@ from controllers.hand_reach import assign_fingers
 from fsm import handlers
 from fsm.context import EpisodeOptions
 from fsm.machine import run_episode
-from fsm.run import main
+from fsm.run import main, options_from_args
 from fsm.states import TRANSITIONS, Failure, State, allowed, table_markdown
 from hand_sim.recorder import read_recording as _read
 
@@ -267,6 +267,16 @@ def test_interrupt_keeps_the_summary_and_the_recording(tmp_path: Path, monkeypat
     }
 
 
+def test_the_lateral_gate_reaches_the_episodes_config(tmp_path: Path) -> None:
+    """``--lateral-gate`` sets ``TaskConfig.lateral_gate`` (the paper's 0.4 without it); the
+    rest of the configuration stays the default."""
+    out = ["--out", str(tmp_path / "o"), "--no-record"]
+    assert options_from_args(["--scene", "clutter3", *out]).config.lateral_gate == 0.4
+    options = options_from_args(["--scene", "clutter3", "--lateral-gate", "0.6", *out])
+    assert options.config.lateral_gate == 0.6
+    assert options.config.lateral_contacts == "sampled-first"
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -282,6 +292,8 @@ def test_interrupt_keeps_the_summary_and_the_recording(tmp_path: Path, monkeypat
         (["--controller", "xx"], "controller"),
         (["--model", "4d"], "--model"),
         (["--hand", "banana"], "--hand"),
+        (["--lateral-gate", "-0.5"], "positive S_G"),
+        (["--lateral-gate", "inf"], "--lateral-gate"),
         (["--out", ""], "--out"),
     ],
 )
