@@ -87,6 +87,11 @@ class TaskConfig:
     #: delivered the three episodes whose contacts stayed out of reach after two (two hexagons,
     #: a pentagon; 27 -> 30 of 30 on those seeds, at 100-190 s of wall time each).
     max_regrasps: int = 4
+    #: Lateral grasps: times a block that slipped at the lift (and still stands where the
+    #: overhead camera sees it, as modelled) is grasped again, from the next palm pose, each
+    #: counting as a regrasp (the lift as the grasp's test, fsm.handlers.look_again). One, set
+    #: before any episode with it ran.
+    lift_retries: int = 1
     regrasp_rolls: tuple[float, ...] = (np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
     #: The held load must be at least this share of the perceived block's weight after the lift,
     #: and during the carry (wrist sensor), else the block slipped / was dropped.
@@ -117,6 +122,13 @@ class TaskConfig:
             raise ValueError(
                 f"lateral_contacts must be one of {', '.join(LATERAL_CONTACTS)}; "
                 f"got {self.lateral_contacts!r}"
+            )
+        if isinstance(self.lift_retries, bool) or not (
+            isinstance(self.lift_retries, int) and self.lift_retries >= 0
+        ):
+            raise ValueError(
+                f"lift_retries must be a whole number of retries, 0 or more; "
+                f"got {self.lift_retries!r}"
             )
         if not (np.isfinite(self.lateral_gate) and self.lateral_gate > 0.0):
             raise ValueError(

@@ -101,6 +101,8 @@ class CycleRecord:
     converged: bool = False
     posture_retries: int = 0
     regrasps: int = 0  #: restarts from Fine Reach with the hand turned or moved
+    #: lateral grasps taken again after the block slipped at the lift (each also a regrasp)
+    lift_retries: int = 0
     fine_reach_loops: int = 0
     reach_reasons: list[str] = field(default_factory=list)
     grip_forces: list[float] | None = None  #: N per finger after the squeeze
@@ -178,6 +180,10 @@ class Episode:
     #: the wrist rolls (rad) about the approach axis Posture Control's lateral search keeps
     #: after a sampled pre-shape taken at ``PalmPoseParams.lateral_more_rolls``; None: its own
     preshape_rolls: tuple[float, ...] | None = None
+    #: after a lateral grasp failed with the fingers on the block and the camera looked again
+    #: (fsm.handlers.look_again): (Failure, reason) the episode fails with when Coarse Reach
+    #: finds no further palm pose; None otherwise
+    regrasp_failure: tuple[Any, str] | None = None
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
     heights_searched: Any | None = None
@@ -217,6 +223,7 @@ class Episode:
         self.top_poses = None
         self.preshape_hand_q = None
         self.preshape_rolls = None
+        self.regrasp_failure = None
         self.posture_mode = "hold"
         return self.record
 

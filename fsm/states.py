@@ -99,7 +99,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             "a perceived polygon, centroid and yaw of the picked block",
             25.0,
             (State.FINE_REACH,),
-            (Failure.NO_COARSE_PATH,),
+            # a lateral regrasp's, after looking again, when no palm pose is left
+            (Failure.NO_COARSE_PATH, Failure.FINGERS_CANNOT_REACH, Failure.SLIPPED_DURING_LIFT),
         ),
         StateSpec(
             State.FINE_REACH,
@@ -126,15 +127,17 @@ TRANSITIONS: dict[State, StateSpec] = {
         StateSpec(
             State.GRASP_OBJECT,
             "a converged grasp (S_G <= 0.4) whose contacts the hand reaches",
-            16.0,  # closing and squeezing take 3-5 s; a miss adds the regrasp's repositioning
-            (State.DELIVER, State.FINE_REACH),
+            # closing and squeezing take 3-5 s; a miss adds the regrasp's repositioning (a
+            # lateral one's release, retreat and park, fsm.handlers.look_again: up to ~12 s)
+            30.0,
+            (State.DELIVER, State.FINE_REACH, State.COARSE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
         StateSpec(
             State.DELIVER,
             "all four pads feel the block at the grip force",
             60.0,
-            (State.SELECT_MODEL, State.DONE),
+            (State.SELECT_MODEL, State.COARSE_REACH, State.DONE),
             (
                 Failure.SLIPPED_DURING_LIFT,
                 Failure.DROPPED_IN_TRANSPORT,

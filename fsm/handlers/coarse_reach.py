@@ -34,7 +34,11 @@ def coarse_reach(ep: Episode) -> Step:
     touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
     preshape = ""
     if plan.approach == "lateral":
-        done = lateral_preshape(ep)
+        # after the camera looked again (fsm.handlers.look_again), the next palm pose
+        done = lateral_preshape(ep, skip=ep.record.regrasps)
+        if done is None and ep.regrasp_failure is not None:
+            failure, reason = ep.regrasp_failure
+            raise TaskFailedError(failure, f"{reason}; no other palm pose to regrasp from")
         preshape = "; " + (done or "no pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,

@@ -7,7 +7,6 @@ from collections import deque
 
 import numpy as np
 
-from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
 from controllers.delivery import plan_delivery
 from controllers.grip import CONTROL_PERIOD, release
@@ -15,6 +14,7 @@ from controllers.palm_candidates import robot_base_xy
 from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
 from fsm.context import CycleRecord, Episode
 from fsm.handlers.common import slides
+from fsm.handlers.look_again import grasp_again_or_fail, park_arm
 from fsm.judge import judge
 from fsm.layout import free_slot
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -46,21 +46,6 @@ def _unreachable_detail(ep: Episode, tried: list[np.ndarray], reason: str) -> st
         return f"no set-down posture at the place point asked for {where}: {reason}{hint}"
     slots = ", ".join(str(t.round(3).tolist()) for t in tried)
     return f"no set-down posture at {len(tried)} place slots ({slots}): {reason}"
-
-
-def _park(ep: Episode) -> str:
-    """Take the arm back to where it stood when the first Select/Model looked, so that the next
-    one sees the table as the first did (Select/Model's guard: the arm is parked clear of the
-    table; a hand left above the table hides blocks from the overhead camera, and its faces merge
-    with theirs). The path is planned among the blocks where they stand now. Returns what was
-    done, for the transition log."""
-    if ep.parked_arm is None:
-        return "the arm stays where it retreated to"
-    path = plan_arm_path(CollisionChecker(ep.world), ep.world.arm_qpos(), ep.parked_arm)
-    if not path.found:
-        return f"the arm stays where it retreated to (no path to its parked posture: {path.reason})"
-    execute_path(ep.world, path.path)
-    return "the arm is parked clear of the view"
 
 
 class _DroppedError(Exception):
@@ -97,8 +82,8 @@ def deliver(ep: Episode) -> Step:
         # (balanced_shares) and may let go as the block settles in the grip
         lost &= ep.grip.forces >= config.carrying_share * ep.grip.forces.mean()
     if load < config.min_held_share * ep.expected_load or lost.sum() > 1:
-        raise TaskFailedError(
-            Failure.SLIPPED_DURING_LIFT,
+        return grasp_again_or_fail(
+            ep,
             f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
             f"touch {np.round(world.touch(), 2).tolist()} N",
         )
@@ -205,5 +190,5 @@ def deliver(ep: Episode) -> Step:
     cycles = ep.options.cycles
     if cycles is None or len(ep.cycles) < cycles:
         ep.cycle += 1
-        return Step(State.SELECT_MODEL, f"{summary}; {_park(ep)}; next block")
+        return Step(State.SELECT_MODEL, f"{summary}; {park_arm(ep)}; next block")
     return Step(State.DONE, summary)

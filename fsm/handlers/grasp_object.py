@@ -57,7 +57,10 @@ def grasp_object(ep: Episode) -> Step:
         # open to the approach posture and regrasp (the fingers that touched only stopped there)
         move_hand(world, ep.grip.q_pre, open_time)
         return regrasp_or_fail(
-            ep, f"{', '.join(missing)} did not touch the block", Failure.FINGERS_CANNOT_REACH
+            ep,
+            f"{', '.join(missing)} did not touch the block",
+            Failure.FINGERS_CANNOT_REACH,
+            look=True,
         )
     result = squeeze(world, ep.grip)
     ep.record.grip_forces = result.touch.round(3).tolist()
@@ -74,6 +77,7 @@ def grasp_object(ep: Episode) -> Step:
             f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
             f"{result.target.mean():.1f} N)",
             Failure.FINGERS_CANNOT_REACH,
+            look=True,
         )
     return Step(
         State.DELIVER,

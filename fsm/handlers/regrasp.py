@@ -11,11 +11,16 @@ from controllers.motion import reposition
 from controllers.palm_candidates import turn_about_vertical
 from fsm.context import Episode
 from fsm.handlers.common import block_site, lateral_preshape, slides
+from fsm.handlers.look_again import look_again
 from fsm.states import Failure, State, Step, TaskFailedError
 
 
 def regrasp_or_fail(
-    ep: Episode, reason: str | None = None, failure: Failure = Failure.CONTACT_UNREACHABLE
+    ep: Episode,
+    reason: str | None = None,
+    failure: Failure = Failure.CONTACT_UNREACHABLE,
+    *,
+    look: bool = False,
 ) -> Step:
     """After MAX_POSTURE_RETRIES the contacts stay out of reach (or, from Fine Reach, a
     fingertip was held off its surface point; from Grasp Object, a finger missed the block as
@@ -24,7 +29,10 @@ def regrasp_or_fail(
     (lateral: the pre-shape at the next palm pose beside the block,
     :func:`fsm.handlers.common.lateral_preshape`), so the grasp controller starts from other
     contacts; after ``config.max_regrasps``, or with no other palm pose or wrist turn to
-    regrasp from, fail with ``failure`` (the reason the regrasp was asked for) and the reason."""
+    regrasp from, fail with ``failure`` (the reason the regrasp was asked for) and the reason.
+    With ``look`` (Grasp Object's: the fingers have been on the block and may have pushed it) a
+    lateral regrasp first looks at the block again and goes by Coarse Reach
+    (:func:`fsm.handlers.look_again.look_again`)."""
     record = ep.record
     config = ep.config
     if reason is None:
@@ -35,6 +43,8 @@ def regrasp_or_fail(
             f"after {config.max_regrasps} regrasps and {record.posture_retries} posture "
             f"retries: {reason}",
         )
+    if slides(ep) and look:
+        return look_again(ep, reason, failure)
     if slides(ep):
         # lateral: the pre-shape at the next palm pose beside the block
         record.regrasps += 1

@@ -14,7 +14,7 @@ from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim.blocks import WOOD_DENSITY
 from hand_sim.robot import STANDARD_GRAVITY
-from vision import VisionError
+from vision import ObjectModel, VisionError
 
 
 def select_model(ep: Episode) -> Step:
@@ -44,13 +44,7 @@ def select_model(ep: Episode) -> Step:
     if name is None:
         raise TaskFailedError(Failure.NO_BLOCK_AT_PICK, "the selected region is not a block")
     record.block = name
-    ep.model = model
-    table_z = world.scene.table.height
-    ep.target = ReachTarget.from_object_model(model)
-    ep.prism = PerceivedPrism.of(ep.target, table_z)
-    ep.planning = planning_model(
-        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
-    )
+    adopt_model(ep, name, model)
     ep.expected_load = model.polygon.area * model.height * WOOD_DENSITY * STANDARD_GRAVITY
     record.polygon = model.polygon.vertices.round(5).tolist()
     truth = world.scene.block(name)
@@ -78,6 +72,29 @@ def select_model(ep: Episode) -> Step:
         b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
     }
     ep.recorder.set_target(name)
+    log_view(ep, model)
+    return Step(
+        State.COARSE_REACH,
+        f"picked {name}: {model.n_edges} edges, centroid "
+        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
+        f"yaw {np.degrees(model.yaw):.0f} deg; {place_text(record)}",
+    )
+
+
+def adopt_model(ep: Episode, name: str, model: ObjectModel) -> None:
+    """Take ``model`` as the picked block's (named ``name`` in the scene): the reach target, the
+    perceived prism the fingers keep clear of, and the planning model the arm's paths avoid."""
+    world = ep.world
+    ep.model = model
+    ep.target = ReachTarget.from_object_model(model)
+    ep.prism = PerceivedPrism.of(ep.target, world.scene.table.height)
+    ep.planning = planning_model(
+        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
+    )
+
+
+def log_view(ep: Episode, model: ObjectModel) -> None:
+    """Record the overhead view Select/Model looked at and the picked block's model in it."""
     ep.recorder.log_vision(
         VisionView(
             ep.selection.observation.rgb,
@@ -87,12 +104,6 @@ def select_model(ep: Episode) -> Step:
             model.pixel_contour,
             float(model.centroid[2]),
         )
-    )
-    return Step(
-        State.COARSE_REACH,
-        f"picked {name}: {model.n_edges} edges, centroid "
-        f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
-        f"yaw {np.degrees(model.yaw):.0f} deg; {place_text(record)}",
     )
 
 

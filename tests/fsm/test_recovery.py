@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -171,6 +172,99 @@ def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> Non
     assert result.failure_detail.startswith("after 0 regrasps"), result.failure_detail
     assert result.visits[-1].state == State.POSTURE_CONTROL.value
     assert State.FINE_REACH.value not in {v.next for v in result.visits[3:]}
+
+
+def test_deliver_and_grasp_object_may_hand_back_to_coarse_reach_to_look_again() -> None:
+    assert allowed(State.DELIVER, State.COARSE_REACH)
+    assert allowed(State.GRASP_OBJECT, State.COARSE_REACH)
+    assert not allowed(State.DELIVER, State.FINE_REACH)
+
+
+@pytest.mark.parametrize("retries", [-1, 1.5, True, "1"])
+def test_lift_retries_that_are_not_a_count_are_refused(retries: object) -> None:
+    with pytest.raises(ValueError, match="lift_retries must be a whole number"):
+        TaskConfig(lift_retries=retries)  # type: ignore[arg-type]
+
+
+def _single_irregular_pentagon(out: Path, config: TaskConfig = DEFAULT_CONFIG):
+    """``single_irregular_pentagon`` at seed 0, --approach lateral, tuned by ``config``."""
+    options = EpisodeOptions(
+        scene="single_irregular_pentagon",
+        seed=0,
+        controller=CONTROLLER,
+        approach="lateral",
+        out=out,
+        record=False,
+        config=config,
+    )
+    return run_episode(options)
+
+
+@pytest.mark.e2e
+def test_a_lateral_block_that_slips_at_the_lift_is_seen_again_and_grasped_from_the_next_pose(
+    tmp_path: Path,
+) -> None:
+    """single_irregular_pentagon, --approach lateral, seed 0: the first pose's grasp (the thumb
+    low, three fingers high on the tall block) loses the block as the arm lifts. With no lift
+    retry the episode ends there, a slip sensed by the pads and the wrist; with the default one
+    the hand lets go, the arm parks, the overhead camera models the block again where it
+    stands, and Coarse Reach takes the pre-shape at the next palm pose, whose grasp holds: the
+    block is delivered, judged physically."""
+    none = _single_irregular_pentagon(tmp_path / "none", replace(DEFAULT_CONFIG, lift_retries=0))
+    assert not none.success
+    assert none.failure == "block slipped during lift", none.failure_detail
+    assert none.cycles[0]["block_at_failure"]["tilt_deg"] < 10.0  # it still stands
+
+    result = _single_irregular_pentagon(tmp_path / "one")
+    back = [v for v in result.visits if v.next == State.COARSE_REACH.value and v.state == "Deliver"]
+    assert len(back) == 1, [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
+    assert back[0].reason.startswith("slipped at the lift")
+    assert "seen again" in back[0].reason
+    reaches = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]
+    assert len(reaches) == 2
+    pose = re.compile(r"pre-shape, (.*?) \(reach load")
+    assert pose.search(reaches[0]).group(1) != pose.search(reaches[1]).group(1), reaches
+    (cycle,) = result.cycles
+    assert cycle["lift_retries"] == 1 and cycle["regrasps"] >= 1
+    assert result.success, f"{result.failure}: {result.failure_detail}"
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+
+
+@pytest.mark.e2e
+def test_a_lateral_regrasp_after_a_finger_missed_looks_at_the_block_again(tmp_path: Path) -> None:
+    """Random scene 93 (two blocks), --approach lateral: the thumb misses the irregular hexagon
+    as the hand closes, and the fingers that touched it have pushed it centimetres from where
+    Select/Model saw it (a regrasp planned on the old model missed it four times over). The
+    hand lets go, the arm parks, the camera models the block where it now stands, Coarse Reach
+    takes the next palm pose's pre-shape, and the block is delivered, judged physically."""
+    options = EpisodeOptions(
+        scene="random",
+        seed=93,
+        blocks=2,
+        controller=CONTROLLER,
+        approach="lateral",
+        out=tmp_path,
+        record=False,
+    )
+    result = run_episode(options)
+    log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
+    again = [
+        v
+        for v in result.visits
+        if v.state == State.GRASP_OBJECT.value and v.next == State.COARSE_REACH.value
+    ]
+    assert again, log
+    assert "did not touch the block" in again[0].reason
+    moved = float(re.search(r"seen again (\d+) mm", again[0].reason).group(1))
+    assert moved >= 10.0, again[0].reason  # the block was no longer where it had been modelled
+    assert result.success, log
+    (cycle,) = result.cycles
+    assert cycle["regrasps"] >= 1
+    j = cycle["judgement"]
+    assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
+    assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
 
 
 @pytest.mark.e2e

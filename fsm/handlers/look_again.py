@@ -1,0 +1,106 @@
+"""Looking again before a lateral regrasp: a grasp that failed with the fingers on the block
+(a finger that missed it as the hand closed, a squeeze that did not settle, a block that
+slipped at the lift) may have pushed the block from where Select/Model saw it, and a regrasp
+planned on the old model then misses it again. The hand lets go, the arm parks, the overhead
+camera models the block again (Select/Model's perception) and the task cycle goes back to
+Coarse Reach for the next palm pose beside the block (Figure 14's recovery loop). Also parks
+the arm between cycles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.arm_path import execute_path, plan_arm_path
+from controllers.cspace import CollisionChecker
+from controllers.grip import release
+from controllers.transport import retreat
+from fsm.context import Episode
+from fsm.handlers.common import slides
+from fsm.handlers.select_model import adopt_model, log_view
+from fsm.perception import perceive
+from fsm.states import Failure, State, Step, TaskFailedError
+from vision import ObjectModel, VisionError
+
+#: The block seen again counts as the one grasped, still standing as modelled, when its top
+#: face's centre is within this distance (m) of the model's, it has as many edges and its area
+#: differs by at most AREA_TOLERANCE (a block tipped onto a side shows another face).
+SAME_BLOCK_RADIUS = 0.05
+AREA_TOLERANCE = 0.25
+
+
+def park_arm(ep: Episode) -> str:
+    """Take the arm back to where it stood when the first Select/Model looked, so that the next
+    look sees the table as the first did (Select/Model's guard: the arm is parked clear of the
+    table; a hand left above the table hides blocks from the overhead camera, and its faces merge
+    with theirs). The path is planned among the blocks where they stand now. Returns what was
+    done, for the transition log."""
+    if ep.parked_arm is None:
+        return "the arm stays where it retreated to"
+    path = plan_arm_path(CollisionChecker(ep.world), ep.world.arm_qpos(), ep.parked_arm)
+    if not path.found:
+        return f"the arm stays where it retreated to (no path to its parked posture: {path.reason})"
+    execute_path(ep.world, path.path)
+    return "the arm is parked clear of the view"
+
+
+def _seen_again(ep: Episode) -> ObjectModel | str:
+    """The picked block's model from a new overhead image, or why it is not the block grasped,
+    standing as modelled (matched by where its top face is, not by name)."""
+    old = ep.model
+    try:
+        selection = ep.selection = perceive(ep.world)
+        model = selection.model(selection.index_near(old.centroid))
+    except VisionError as e:
+        return f"the overhead camera does not model it again ({e})"
+    moved = float(np.linalg.norm(model.centroid[:2] - old.centroid[:2]))
+    area = abs(model.polygon.area - old.polygon.area) / old.polygon.area
+    if moved > SAME_BLOCK_RADIUS or model.n_edges != old.n_edges or area > AREA_TOLERANCE:
+        return (
+            f"the overhead camera sees {model.n_edges} edges {moved * 1000:.0f} mm from where it "
+            f"stood, area {area * 100:.0f} % off (it no longer stands as modelled)"
+        )
+    return model
+
+
+def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp") -> Step:
+    """Release, retreat, park, look again and go back to Coarse Reach, whose lateral pre-shape
+    is then taken at the next palm pose (``skip`` = the regrasps so far, this one counted).
+    ``reason`` (why the grasp failed) and ``failure`` are what the episode fails with when the
+    block is not seen standing as modelled, or (in Coarse Reach) no palm pose is left;
+    ``label`` names the retry in the transition log."""
+    world = ep.world
+    if ep.grip is not None:
+        release(world, ep.grip)
+    retreat(world, CollisionChecker(world))
+    parked = park_arm(ep)
+    seen = _seen_again(ep)
+    if isinstance(seen, str):
+        raise TaskFailedError(failure, f"{reason}; {seen}")
+    moved = float(np.linalg.norm(seen.centroid[:2] - ep.model.centroid[:2]))
+    adopt_model(ep, ep.target_name, seen)
+    log_view(ep, seen)
+    ep.record.regrasps += 1
+    ep.record.posture_retries = 0
+    ep.regrasp_failure = (failure, reason)
+    ep.synthesis = ep.contacts = ep.reach = ep.grip = None
+    return Step(
+        State.COARSE_REACH,
+        f"{label} ({reason}): released, {parked}; seen again {moved * 1000:.0f} mm from where "
+        "it was modelled: grasp again from the next palm pose",
+    )
+
+
+def grasp_again_or_fail(ep: Episode, detail: str) -> Step:
+    """After a lateral grasp's block slipped at the lift (``detail``: what the hand sensed),
+    :func:`look_again`; fails with Failure.SLIPPED_DURING_LIFT for a top grasp, after
+    ``config.lift_retries`` such retries or ``config.max_regrasps`` regrasps."""
+    record = ep.record
+    config = ep.config
+    if (
+        not slides(ep)
+        or record.lift_retries >= config.lift_retries
+        or record.regrasps >= config.max_regrasps
+    ):
+        raise TaskFailedError(Failure.SLIPPED_DURING_LIFT, detail)
+    record.lift_retries += 1
+    return look_again(ep, detail, Failure.SLIPPED_DURING_LIFT, label="slipped at the lift")
