@@ -56,6 +56,7 @@ def grasp_object(ep: Episode) -> Step:
         missing = [f for f, t in zip(robot.FINGERS, closing.touched, strict=True) if not t]
         # open to the approach posture and regrasp (the fingers that touched only stopped there)
         move_hand(world, ep.grip.q_pre, open_time)
+        ep.grip.progress[:] = 0.0  # where the hand now is (a release then opens from here)
         return regrasp_or_fail(
             ep,
             f"{', '.join(missing)} did not touch the block",
@@ -72,6 +73,7 @@ def grasp_object(ep: Episode) -> Step:
             if t < 0.5 * g
         ]
         move_hand(world, ep.grip.q_pre, open_time)  # open, and regrasp
+        ep.grip.progress[:] = 0.0
         return regrasp_or_fail(
             ep,
             f"the squeeze did not reach the grip force ({', '.join(weak) or 'unsettled'} of "
