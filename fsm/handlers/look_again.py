@@ -43,9 +43,10 @@ def park_arm(ep: Episode) -> str:
     return "the arm is parked clear of the view"
 
 
-def _seen_again(ep: Episode) -> ObjectModel | str:
-    """The picked block's model from a new overhead image, or why it is not the block grasped,
-    standing as modelled (matched by where its top face is, not by name)."""
+def _seen_again(ep: Episode) -> tuple[ObjectModel, float] | str:
+    """The picked block's model from a new overhead image and how far (m) its top face's centre
+    is from the old model's, or why it is not the block grasped, standing as modelled (matched
+    by where its top face is, not by name)."""
     old = ep.model
     try:
         selection = ep.selection = perceive(ep.world)
@@ -59,7 +60,7 @@ def _seen_again(ep: Episode) -> ObjectModel | str:
             f"the overhead camera sees {model.n_edges} edges {moved * 1000:.0f} mm from where it "
             f"stood, area {area * 100:.0f} % off (it no longer stands as modelled)"
         )
-    return model
+    return model, moved
 
 
 def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp") -> Step:
@@ -76,9 +77,9 @@ def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp
     seen = _seen_again(ep)
     if isinstance(seen, str):
         raise TaskFailedError(failure, f"{reason}; {seen}")
-    moved = float(np.linalg.norm(seen.centroid[:2] - ep.model.centroid[:2]))
-    adopt_model(ep, ep.target_name, seen)
-    log_view(ep, seen)
+    model, moved = seen
+    adopt_model(ep, ep.target_name, model)
+    log_view(ep, model)
     ep.record.regrasps += 1
     ep.record.posture_retries = 0
     ep.regrasp_failure = (failure, reason)
