@@ -114,6 +114,7 @@ def plan_grip(
     along_normal: bool = False,
     start: ArrayLike | None = None,
     squeeze_reach: float = SQUEEZE_REACH,
+    idle: int | None = None,
 ) -> Grip:
     """The two postures of each finger for contacts ``points`` (4, 3) with outward ``normals``
     (finger order ff, mf, rf, th), arm held where it is now; ``force_shares`` (4,) are the
@@ -130,12 +131,24 @@ def plan_grip(
     held horizontally, as in a lateral grasp, otherwise drags the block up or down as it
     squeezes and tips it). ``start`` (16,): the hand posture the inside posture's IK starts from
     (default the hand's present one), e.g. the one that showed the contacts reachable;
-    ``squeeze_reach``: how far (m) inside its contact the inside posture puts each fingertip."""
+    ``squeeze_reach``: how far (m) inside its contact the inside posture puts each fingertip.
+    ``idle``: a three-contact grasp's finger that takes no contact (its rows of ``points``,
+    ``normals`` and ``force_shares`` are not read): it keeps its posture in ``start``
+    throughout (both its postures that one, its force 0, counted as touching)."""
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
-    shares = np.asarray(force_shares, dtype=float)
-    if shares.shape != (4,) or not np.all(np.isfinite(shares)) or shares.min() <= 0:
+    shares = np.asarray(force_shares, dtype=float).copy()
+    pressing = np.array([f for f in range(len(robot.FINGERS)) if f != idle])
+    if (
+        shares.shape != (4,)
+        or not np.all(np.isfinite(shares[pressing]))
+        or shares[pressing].min() <= 0
+    ):
         raise ReachError(f"force shares must be 4 positive numbers, got {force_shares!r}")
+    if idle is not None:
+        n = n.copy()
+        n[idle] = 0.0  # no squeeze direction: backed_off_hand leaves the finger where it is
+        shares[idle] = 0.0
     if not grip_force > 0:
         raise ReachError(f"grip force must be positive, got {grip_force}")
     inside, inside_pads = grip_targets(p, n, squeeze_reach)
@@ -151,6 +164,7 @@ def plan_grip(
         model=model,
         pad_centres=inside_pads,
         qpos=qpos,
+        still=() if idle is None else (idle,),
     )
     model = world.model if model is None else model
     data_q = world.data.qpos.copy()
@@ -181,6 +195,7 @@ def plan_grip(
             model=model,
             pad_centres=pre_pads,
             qpos=data_q,
+            still=() if idle is None else (idle,),
         )
         if prism is None:
             break
@@ -192,20 +207,24 @@ def plan_grip(
         if not tight.any() or standoff[tight].min() >= MAX_PRE_CONTACT:
             break
         standoff[tight] = np.minimum(standoff[tight] + PRE_CONTACT_STEP, MAX_PRE_CONTACT)
+    forces = grip_force * shares / shares[pressing].mean()
+    touched = np.arange(len(robot.FINGERS)) == idle  # the idle finger waits for no touch
     if along_normal:
         return Grip(
             pre_q,
             sol_in.hand_q,
-            grip_force * shares / shares.mean(),
+            forces,
             in_error=sol_in.tip_error,
+            touched=touched,
             normals=n.copy(),
         )
     return Grip(
         sol_pre.hand_q,
         sol_in.hand_q,
-        grip_force * shares / shares.mean(),
+        forces,
         pre_error=sol_pre.tip_error,
         in_error=sol_in.tip_error,
+        touched=touched,
         normals=n.copy(),
     )
 

@@ -24,20 +24,22 @@ here, as is :data:`controllers.finger_samples.PAD_NORMAL_LOCAL`.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import linear_sum_assignment
 
-from controllers.fine_reach import GRASP_DEPTH
+from controllers.finger_assignment import (
+    BOTTOM_MARGIN,
+    TOP_MARGIN,
+    FingerContacts,
+    ranked_assignments,
+)
 from controllers.finger_geometry import (
     PerceivedPrism,
     finger_palmar,
     finger_sideways,
-    fingertips_at,
     link_penetration,
     pad_normals,
 )
@@ -83,22 +85,6 @@ IK_ITERATIONS = 250
 SQUEEZE_REACH = 0.006
 
 
-def assign_fingers(tips: ArrayLike, points: ArrayLike) -> tuple[int, ...]:
-    """The explicit finger-to-contact rule: the assignment of the four fingertips (ff, mf, rf,
-    th; rows of ``tips`` (4, 3)) to the contacts (rows of ``points`` (4, 3)) that minimises the
-    sum of squared reach distances (an optimal assignment, Hungarian method). Returns, per finger,
-    the index of its contact. The controller's own order of the contacts plays no part."""
-    t = np.asarray(tips, dtype=float)
-    p = np.asarray(points, dtype=float)
-    if t.shape != p.shape or t.ndim != 2 or t.shape[1] != 3:
-        raise ValueError(f"tips and points must both be (n, 3), got {t.shape} and {p.shape}")
-    cost = ((t[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1)
-    rows, cols = linear_sum_assignment(cost)
-    out = np.empty(len(t), dtype=int)
-    out[rows] = cols
-    return tuple(int(c) for c in out)
-
-
 @dataclass(frozen=True, eq=False)
 class HandReach:
     """Verdict of :func:`check_reach` for contacts in finger order (ff, mf, rf, th)."""
@@ -140,9 +126,11 @@ def _sampled_start(
     prism: PerceivedPrism,
     heights: tuple[float, float],
     squeeze: float,
+    idle: int | None = None,
 ) -> NDArray[np.float64]:
     """``qpos`` with each finger's joints replaced by the sample that takes its contact best,
-    where a sample does; ``heights`` is the range the contacts may slide in."""
+    where a sample does (not the ``idle`` finger's); ``heights`` is the range the contacts may
+    slide in."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
@@ -161,19 +149,14 @@ def _sampled_start(
     # sliding contacts prefer the palm's height: opposed fingers then press at one height
     prefer = float(p0[2])
     for f in range(len(robot.FINGERS)):
+        if f == idle:
+            continue
         q, _ = samples.best(
             f, p0, R0, points[f], normals[f], heights, prism.signed_distance, criteria, prefer
         )
         if q is not None:
             out[adr[f]] = q
     return out
-
-
-#: Contacts stay at least GRASP_DEPTH (m) below the block's top (where Fine Reach takes the
-#: fingertips; a contact nearer the top edge is pressed by the side of the fingertip) and
-#: BOTTOM_MARGIN (m) above the table.
-TOP_MARGIN = GRASP_DEPTH
-BOTTOM_MARGIN = 0.02
 
 
 def _beyond_span(
@@ -205,6 +188,7 @@ def check_reach(
     squeeze: float = SQUEEZE_REACH,
     give_up: bool = False,
     span_test: bool = False,
+    idle: int | None = None,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
     ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
@@ -226,7 +210,9 @@ def check_reach(
     fingertip target lies beyond its finger's span (:func:`_beyond_span`) neither the sampled
     start nor the IK runs: the verdict (unreachable, as the IK's) is taken at the start posture,
     its ``hand_q``, ``tip_error``, ``load`` and reason those of that posture, for a caller that
-    throws unreachable verdicts away."""
+    throws unreachable verdicts away. ``idle``: a three-contact grasp's finger that takes no
+    contact (its row of ``points`` and ``normals`` is not read): it stays in ``qpos``'s posture
+    and only its links' penetration of the block is judged."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -239,7 +225,7 @@ def check_reach(
     data = scratch.data
     hopeless = span_test and not slide and _beyond_span(model, data, start, tips)
     if samples is not None and slide and not hopeless:
-        start = _sampled_start(model, start, samples, p, n, prism, heights, squeeze)
+        start = _sampled_start(model, start, samples, p, n, prism, heights, squeeze, idle)
     sol = solve_posture(
         world,
         tips,
@@ -252,6 +238,7 @@ def check_reach(
         pad_centres=centres,
         slide=heights if slide else None,
         give_up=give_up,
+        still=() if idle is None else (idle,),
     )
     heights = p[:, 2] if sol.targets is None else sol.targets[:, 2]
     # the pads where they take their contacts: at the heights a sliding contact was taken at
@@ -260,6 +247,8 @@ def check_reach(
     centres_at_contact = np.column_stack([p[:, :2], heights]) + robot.PAD_RADIUS * n
     gaps = np.linalg.norm(centres_at_contact[:, None] - centres_at_contact[None, :], axis=-1)
     gaps[np.diag_indices(len(p))] = np.inf
+    if idle is not None:
+        gaps[idle, :] = gaps[:, idle] = np.inf
     spacing = float(gaps.min())
     data.qpos[:] = start
     data.qpos[scratch.indices.hand_qpos] = sol.hand_q
@@ -268,6 +257,8 @@ def check_reach(
     angle = np.arccos(np.clip(cosines, -1.0, 1.0))
     sideways = np.abs(np.einsum("fd,fd->f", finger_sideways(model, data), n))
     palmar = np.einsum("fd,fd->f", finger_palmar(model, data), -n)
+    if idle is not None:  # presses nothing: no pad to face a contact
+        angle[idle], sideways[idle], palmar[idle] = 0.0, 0.0, 1.0
     depth = link_penetration(model, data, prism)
     deepest = max(depth.values())
     reason = ""
@@ -319,98 +310,6 @@ def check_reach(
     )
 
 
-@dataclass(frozen=True, eq=False)
-class FingerContacts:
-    """Contacts given to fingers: row f is finger f's (ff, mf, rf, th) contact."""
-
-    points: NDArray[np.float64]  #: (4, 3) world contact points on the side faces
-    normals: NDArray[np.float64]  #: (4, 3) outward face normals (horizontal)
-    theta: NDArray[np.float64]  #: (4,) contact coordinates on the perceived polygon
-    contact_of_finger: tuple[int, ...]  #: index of each finger's contact in the controller's set
-
-
-def contacts_at_tips(
-    target: ReachTarget, theta: NDArray[np.float64], tips: NDArray[np.float64], table_z: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """World xy (n, 2), normals (n, 2) of contacts ``theta`` and the height each finger would
-    take them at (4,)."""
-    frames = target.polygon.locate(theta)
-    c, s = np.cos(target.yaw), np.sin(target.yaw)
-    R = np.array([[c, -s], [s, c]])
-    xy = frames.point @ R.T + np.asarray(target.position_xy)
-    z = np.clip(tips[:, 2], table_z + BOTTOM_MARGIN, target.top_z - TOP_MARGIN)
-    return xy, frames.normal @ R.T, z
-
-
-def given_contacts(
-    theta: NDArray[np.float64],
-    xy: NDArray[np.float64],
-    nxy: NDArray[np.float64],
-    z: NDArray[np.float64],
-    order: ArrayLike,
-) -> FingerContacts:
-    """Finger f on contact ``order[f]`` (:func:`contacts_at_tips`), at finger f's height."""
-    order = np.asarray(order, dtype=int)
-    points = np.column_stack([xy[order], z])
-    normals = np.column_stack([nxy[order], np.zeros(len(order))])
-    return FingerContacts(points, normals, theta[order], tuple(int(i) for i in order))
-
-
-def finger_contacts(
-    target: ReachTarget, theta: ArrayLike, tips: ArrayLike, table_z: float
-) -> FingerContacts:
-    """The controller's contacts ``theta`` (polar angles on the perceived polygon) given to the
-    fingers by the optimal assignment on squared reach distance (:func:`assign_fingers`).
-    Contacts are planar (section 5: the grasp acts on the prism's horizontal cross-section);
-    each lies at the height its fingertip has now, kept between the table and the block's top
-    by the margins above."""
-    th = np.asarray(theta, dtype=float)
-    tips = np.asarray(tips, dtype=float)
-    xy, nxy, z = contacts_at_tips(target, th, tips, table_z)
-    # contact j as finger f would take it: at finger f's height
-    candidate = np.concatenate(
-        [np.broadcast_to(xy, (4, 4, 2)), z[:, None, None] * np.ones((4, 4, 1))], axis=2
-    )
-    cost = ((tips[:, None, :] - candidate) ** 2).sum(axis=-1)
-    rows, cols = linear_sum_assignment(cost)
-    order = np.empty(4, dtype=int)
-    order[rows] = cols
-    return given_contacts(th, xy, nxy, z, order)
-
-
-def ranked_assignments(
-    world: World,
-    prism: PerceivedPrism,
-    target: ReachTarget,
-    theta: ArrayLike,
-    *,
-    model: mujoco.MjModel | None = None,
-    qpos: ArrayLike | None = None,
-    heights: ArrayLike | None = None,
-    count: int | None = None,
-) -> list[FingerContacts]:
-    """The 24 ways to give the contacts ``theta`` to the four fingers, each as the contacts
-    given (at each fingertip's height, or at ``heights``, a 3-D grasp's), ranked by total
-    squared reach distance from the fingertips of ``qpos`` (the world's state when None): the
-    order :func:`reachable_contacts` checks them in, without the reach test; the first ``count``
-    of them (all when None)."""
-    th = np.asarray(theta, dtype=float)
-    model = world.model if model is None else model
-    tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
-    xy, nxy, z = contacts_at_tips(target, th, tips, prism.bottom)
-    perms = np.array(list(itertools.permutations(range(len(th)))))
-    # each finger's height in each assignment: its tip's, or its contact's own (3-D)
-    zs = (
-        np.broadcast_to(z[None, :], perms.shape)
-        if heights is None
-        else np.asarray(heights, dtype=float)[perms]
-    )
-    pts = np.concatenate([xy[perms], zs[:, :, None]], 2)
-    cost = ((pts - tips[None]) ** 2).sum(axis=(1, 2))
-    ranked = np.argsort(cost, kind="stable")[:count]
-    return [given_contacts(th, xy, nxy, zs[k], perms[k]) for k in ranked]
-
-
 #: Assignments :func:`reachable_contacts` tries, nearest first.
 ASSIGNMENTS_TRIED = 6
 
@@ -431,6 +330,7 @@ def reachable_contacts(
     heights: ArrayLike | None = None,
     give_up: bool = False,
     span_test: bool = False,
+    idle: int | None = None,
 ) -> tuple[FingerContacts, HandReach]:
     """The finger-to-contact rule of the task cycle: of the 24 ways to give the four contacts
     to the four fingers, ranked by total squared reach distance from the fingertips (at each
@@ -443,12 +343,14 @@ def reachable_contacts(
     each contact (a 3-D grasp: a finger takes its contact at the contact's height, not its own).
     ``give_up``: each check stops as soon as it cannot succeed, and the checks after the first
     skip the IK of contacts beyond a finger's span (only the first's reason is returned);
-    ``span_test``: the first check does too (:func:`check_reach`)."""
+    ``span_test``: the first check does too (:func:`check_reach`). ``idle``: a three-contact
+    grasp (three contacts) whose ``idle`` finger takes none
+    (:func:`controllers.finger_assignment.ranked_assignments`, :func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     first: tuple[FingerContacts, HandReach] | None = None
     for contacts in ranked_assignments(
-        world, prism, target, th, model=model, qpos=qpos, heights=heights, count=tries
+        world, prism, target, th, model=model, qpos=qpos, heights=heights, count=tries, idle=idle
     ):
         reach = check_reach(
             world,
@@ -464,6 +366,7 @@ def reachable_contacts(
             give_up=give_up,
             # past the first assignment an unreachable verdict is thrown away
             span_test=span_test or (give_up and first is not None),
+            idle=idle,
         )
         if slide and reach.heights is not None:
             points = np.column_stack([contacts.points[:, :2], reach.heights])

@@ -79,7 +79,7 @@ DEFAULT_SAMPLING = LateralSampling()
 
 @dataclass(frozen=True, eq=False)
 class SampledGrasp:
-    """A lateral grasp found among the sampled finger postures: each finger's contact
+    """A lateral grasp found among the sampled finger postures: each pressing finger's contact
     coordinate (``theta``, rad, order ff, mf, rf, th), world contact point, the hand's joints
     (the four samples), S_G of the contacts and the worst criterion share of the samples
     (``load``, below 1)."""
@@ -89,6 +89,15 @@ class SampledGrasp:
     hand_q: NDArray[np.float64]
     s_g: float
     load: float
+    #: a three-contact grasp's finger that presses nothing (held clear of the block in its
+    #: ``hand_q`` posture; ``theta`` and ``points`` are then the other three fingers'), or None
+    idle: int | None = None
+
+
+#: A three-contact grasp's idle finger stays this far (m) from the block and the other fingers.
+IDLE_CLEARANCE = 0.008
+#: Samples of the idle finger tested at a time (:func:`_idle_posture`).
+IDLE_CHUNK = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,11 +200,82 @@ def sampled_lateral_grasp(
     """The lowest-S_G grasp of one sampled candidate contact per finger
     (:func:`finger_candidates`) with the arm at ``qpos``'s posture (``model``, the planning
     model), the pads apart; None when a finger has no candidate or no combination fits."""
+    palm = _palm(model, qpos)
+    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params)
+    best = _lowest_s_g(per, polygon, params)
+    if best is None:
+        return None
+    s_g, load, pick = best
+    chosen = [int(c.sample[k]) for c, k in zip(per, pick, strict=True)]
+    hand = np.concatenate([samples.q[i, f] for f, i in enumerate(chosen)])
+    points = np.stack([c.point[k] for c, k in zip(per, pick, strict=True)])
+    theta = np.array([c.theta[k] for c, k in zip(per, pick, strict=True)])
+    return SampledGrasp(theta, points, hand, s_g, load)
+
+
+def three_contact_lateral_grasp(
+    model: mujoco.MjModel,
+    qpos: NDArray[np.float64],
+    samples: FingerSamples,
+    prism: PerceivedPrism,
+    polygon: Polygon,
+    pose_xy: tuple[NDArray[np.float64], float],
+    squeeze: float,
+    params: LateralSampling = DEFAULT_SAMPLING,
+) -> SampledGrasp | None:
+    """The lowest-S_G grasp of three contacts, the thumb's and two fingers' (the paper's grasp
+    controller takes any number of contacts, section 3 and Appendix B), at the palm pose of
+    ``qpos``: as :func:`sampled_lateral_grasp` over the three fingers, the fourth (``idle``,
+    one of ff, mf, rf) held in a sampled posture whose every link stays
+    :data:`IDLE_CLEARANCE` outside the perceived block, above the table and clear of the other
+    fingers' links. A thumb against three fingers on parallel faces scores S_G 0.5 under Eq.
+    13's unit normal forces (it must push as hard as the three together), a thumb against two
+    0.33. ``theta`` and ``points`` are the three pressing fingers', in finger order. None when
+    no idle finger has such a posture or no combination fits."""
+    palm = _palm(model, qpos)
+    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params)
+    thumb = len(robot.FINGERS) - 1
+    best = None
+    for idle in range(thumb):
+        pressing = [f for f in range(len(robot.FINGERS)) if f != idle]
+        found = _lowest_s_g([per[f] for f in pressing], polygon, params)
+        if found is None:
+            continue
+        s_g, load, pick = found
+        sample_of = {f: int(per[f].sample[k]) for f, k in zip(pressing, pick, strict=True)}
+        parked = _idle_posture(samples, idle, sample_of, palm, prism, params)
+        if parked is not None and (best is None or (s_g, load) < best[:2]):
+            best = (s_g, load, idle, pressing, pick, sample_of | {idle: parked})
+    if best is None:
+        return None
+    s_g, load, idle, pressing, pick, sample_of = best
+    hand = np.concatenate([samples.q[sample_of[f], f] for f in range(len(robot.FINGERS))])
+    points = np.stack([per[f].point[k] for f, k in zip(pressing, pick, strict=True)])
+    theta = np.array([per[f].theta[k] for f, k in zip(pressing, pick, strict=True)])
+    return SampledGrasp(theta, points, hand, s_g, load, idle)
+
+
+def _palm(
+    model: mujoco.MjModel, qpos: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The palm body's world position and rotation at ``qpos``."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     palm_id = model.body(robot.hand_name(robot.PALM_BODY)).id
-    palm = (data.xpos[palm_id].copy(), data.xmat[palm_id].reshape(3, 3).copy())
+    return data.xpos[palm_id].copy(), data.xmat[palm_id].reshape(3, 3).copy()
+
+
+def _all_candidates(
+    samples: FingerSamples,
+    palm: tuple[NDArray[np.float64], NDArray[np.float64]],
+    prism: PerceivedPrism,
+    polygon: Polygon,
+    pose_xy: tuple[NDArray[np.float64], float],
+    squeeze: float,
+    params: LateralSampling,
+) -> list[_Candidates]:
+    """Every finger's candidate contacts (:func:`finger_candidates`) with the palm at ``palm``."""
     criteria = Criteria(
         params.tolerance,
         MAX_PAD_ANGLE,
@@ -204,10 +284,18 @@ def sampled_lateral_grasp(
         MAX_LINK_PENETRATION,
         squeeze,
     )
-    per = [
+    return [
         finger_candidates(samples, f, palm, prism, polygon, pose_xy, criteria, params)
         for f in range(len(robot.FINGERS))
     ]
+
+
+def _lowest_s_g(
+    per: list[_Candidates], polygon: Polygon, params: LateralSampling
+) -> tuple[float, float, tuple[int, ...]] | None:
+    """Of the combinations of one candidate from each of ``per`` whose pads fit, the one of
+    lowest S_G (Eq. 13; ties to the lower load): its S_G, load and candidate indices; None when
+    a finger has no candidate or no combination fits or is feasible."""
     if any(len(c.sample) == 0 for c in per):
         return None
     combos = np.array(list(itertools.product(*(range(len(c.sample)) for c in per))))
@@ -244,6 +332,44 @@ def sampled_lateral_grasp(
     if best is None:
         return None
     s_g, load, k = best
-    hand = np.concatenate([samples.q[c.sample[combos[k, f]], f] for f, c in enumerate(per)])
-    points = np.stack([c.point[combos[k, f]] for f, c in enumerate(per)])
-    return SampledGrasp(theta[k].copy(), points, hand, s_g, load)
+    return s_g, load, tuple(int(i) for i in combos[k])
+
+
+def _idle_posture(
+    samples: FingerSamples,
+    idle: int,
+    sample_of: dict[int, int],
+    palm: tuple[NDArray[np.float64], NDArray[np.float64]],
+    prism: PerceivedPrism,
+    params: LateralSampling,
+) -> int | None:
+    """The sample of finger ``idle`` that keeps it out of a three-contact grasp: its links and
+    fingertip at least :data:`IDLE_CLEARANCE` outside the perceived block, ``table_clearance``
+    above the table and :data:`IDLE_CLEARANCE` from the pressing fingers' links (their samples
+    ``sample_of``); of those, the one nearest the straight finger (joints at zero), which
+    sweeps least on the way. None when no sample is clear."""
+    p0, R0 = palm
+    order = np.argsort(np.abs(samples.q[:, idle]).sum(axis=1), kind="stable")
+    radius = samples.radius[idle]
+    others = [(samples.links[k, f] @ R0.T + p0, samples.radius[f]) for f, k in sample_of.items()]
+    # nearest the straight first, a chunk at a time: the first clear sample ends the search
+    for chunk in np.array_split(order, max(1, len(order) // IDLE_CHUNK)):
+        links = samples.links[chunk, idle] @ R0.T + p0  # (k, P, 3)
+        tips = samples.tip[chunk, idle] @ R0.T + p0
+        clear = np.minimum(
+            (prism.signed_distance(links) - radius).min(axis=1),
+            prism.signed_distance(tips) - robot.PAD_RADIUS,
+        )
+        above = (links[..., 2] - radius).min(axis=1) - prism.bottom
+        for i in np.flatnonzero((clear >= IDLE_CLEARANCE) & (above >= params.table_clearance)):
+            if all(
+                (
+                    np.linalg.norm(links[i][:, None] - other[None], axis=-1)
+                    - radius[:, None]
+                    - r[None, :]
+                ).min()
+                >= IDLE_CLEARANCE
+                for other, r in others
+            ):
+                return int(chunk[i])
+    return None

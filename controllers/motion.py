@@ -21,8 +21,8 @@ from controllers.arm_path import execute_path, first_collision, plan_arm_path
 from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
 from controllers.fine_reach import project_to_surface
+from controllers.finger_assignment import FingerContacts
 from controllers.grip import PRE_CONTACT, backed_off_hand, move_hand
-from controllers.hand_reach import FingerContacts
 from controllers.planning_model import PERCEIVED_GEOM
 from controllers.posture import SERVO_CORRECTIONS, solve_posture
 from controllers.reach import ReachTarget

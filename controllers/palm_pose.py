@@ -29,11 +29,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.cspace import CollisionChecker
+from controllers.finger_assignment import FingerContacts
 from controllers.finger_geometry import PerceivedPrism
 from controllers.finger_samples import FingerSamples
 from controllers.hand_reach import (
     SQUEEZE_REACH,
-    FingerContacts,
     HandReach,
     grip_targets,
     reachable_contacts,
@@ -62,6 +62,8 @@ class ReachQuery:
     samples: FingerSamples | None = None
     squeeze: float = SQUEEZE_REACH
     heights: NDArray[np.float64] | None = None  #: world z of each contact (3-D grasp), or None
+    #: a three-contact grasp's finger that takes no contact (three contacts), or None
+    idle: int | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +97,8 @@ class PalmPoseResult:
     tilt: float | None = None
     palm_rotation: NDArray[np.float64] | None = None
     approach: ApproachPlan | None = None
+    #: not found: how many acceptable poses ``skip`` passed over (fewer than it asked)
+    skipped: int = 0
 
 
 def _configuration(model: mujoco.MjModel, qpos: NDArray[np.float64]) -> dict[str, Any]:
@@ -169,6 +173,7 @@ def search_seeds(
             check_spacing=check_spacing,
             heights=query.heights,
             give_up=True,
+            idle=query.idle,
         )
         if not reach.reachable:
             reason = reach.reason
@@ -196,6 +201,7 @@ def search_poses(
     reachable_only: bool,
     skip: int = 0,
     heights_of: Callable[[PalmPose], NDArray[np.float64]] | None = None,
+    idle_of: Callable[[PalmPose], int | None] | None = None,
 ) -> PalmPoseResult:
     """Search the palm ``poses`` (:func:`controllers.palm_candidates.lateral_poses`,
     :func:`~controllers.palm_candidates.top_poses`) group by group (a lateral grasp's palm
@@ -207,10 +213,12 @@ def search_poses(
     lowest ``HandReach.load``. Without ``reachable_only``, when none reaches, the lowest load
     that approaches. ``skip`` passes over that many acceptable poses first (a regrasp tries the
     next). ``heights_of(pose)``: the contacts' world heights at that pose (contacts taken
-    where given, not slid; the hand IK from the pose's own hand posture)."""
+    where given, not slid; the hand IK from the pose's own hand posture). ``idle_of(pose)``: the
+    finger that takes no contact at that pose (a three-contact grasp; default ``query.idle``)."""
     world = query.world
     hand_adr = robot.hand_qpos_addresses(world.model)
     tried = []
+    passed = skip
     for _, group in itertools.groupby(enumerate(poses), key=lambda item: item[1].group):
         found = []
         for index, pose in group:
@@ -230,6 +238,7 @@ def search_poses(
                 heights=heights_of(pose) if fixed else query.heights,
                 give_up=reachable_only,  # else the loads of unreachable poses rank them
                 span_test=reachable_only,  # unreachable verdicts' reasons are not reported
+                idle=query.idle if idle_of is None else idle_of(pose),
             )
             qpos = pose.qpos.copy()
             qpos[hand_adr] = reach.hand_q
@@ -245,14 +254,16 @@ def search_poses(
                 skip -= 1
         tried += [c for c in found if c[0] >= 1.0]
     if reachable_only:
-        return PalmPoseResult(False, "no palm pose reaches the contacts")
+        return PalmPoseResult(False, "no palm pose reaches the contacts", skipped=passed - skip)
     for candidate in sorted(tried, key=lambda c: c[0]):
         result = _accepted(world, candidate, plan_approach)
         if result is not None:
             if skip == 0:
                 return result
             skip -= 1
-    return PalmPoseResult(False, "no palm pose is approached without collision")
+    return PalmPoseResult(
+        False, "no palm pose is approached without collision", skipped=passed - skip
+    )
 
 
 def _accepted(

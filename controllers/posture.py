@@ -223,6 +223,7 @@ def solve_posture(
     pad_centres: ArrayLike | None = None,
     slide: tuple[float, float] | None = None,
     give_up: bool = False,
+    still: tuple[int, ...] = (),
 ) -> PostureResult:
     """Kinematic posture control from the world's current state, or from ``qpos`` (the world is not
     changed). First the fingertips are brought to ``targets`` (4, 3) (default: where they are now);
@@ -244,7 +245,8 @@ def solve_posture(
     5), a vertical line, so only the target's horizontal position is held and its height follows the
     fingertip's. ``give_up``: stop as soon as the targets cannot be reached
     (:class:`controllers.ik_progress.ReachProgress`), for a caller that discards unreachable results
-    (their joints then differ from those of a full run).
+    (their joints then differ from those of a full run). ``still``: fingers held as they are
+    (a three-contact grasp's idle finger): their joints frozen, their targets where they are.
     """
     if joints not in JOINT_SETS:
         raise PostureError(f"unknown joint set {joints!r}; valid: {', '.join(JOINT_SETS)}")
@@ -263,12 +265,19 @@ def solve_posture(
     )
     if goal.shape != (len(robot.FINGERS), 3) or not np.all(np.isfinite(goal)):
         raise PostureError(f"fingertip targets must be a finite (4, 3) array, got {goal.shape}")
+    held = list(still)
+    if held:
+        goal = goal.copy()
+        goal[held] = cfg.data.site_xpos[idx.tip_sites[held]]
     tips = _point_tasks(robot.FINGERTIP_SITES, goal, TIP_COST)
     pads = []
     if pad_centres is not None:
         centres = np.array(pad_centres, dtype=float)
         if centres.shape != goal.shape or not np.all(np.isfinite(centres)):
             raise PostureError(f"pad centres must be a finite (4, 3) array, got {centres.shape}")
+        if held:
+            pad_ids = [model.site(robot.qualified(robot.PAD_CENTRE_SITES[f])).id for f in held]
+            centres[held] = cfg.data.site_xpos[pad_ids]
         pads = _point_tasks(robot.PAD_CENTRE_SITES, centres, PAD_CENTRE_COST)
     tips_and_pads = tips + pads
     if slide is not None:
@@ -281,6 +290,7 @@ def solve_posture(
     def follow_heights() -> None:
         """Slide the targets' heights to the fingertips' (within ``slide``)."""
         goal[:, 2] = np.clip(cfg.data.site_xpos[idx.tip_sites][:, 2], lo_z, hi_z)
+        goal[held, 2] = cfg.data.site_xpos[idx.tip_sites[held], 2]  # where they are held
         for task, target in zip(tips, goal, strict=True):
             task.set_target(mink.SE3.from_translation(target))
         for k, task in enumerate(pads):
@@ -307,7 +317,7 @@ def solve_posture(
                     return False
         return True
 
-    frozen = _frozen_dofs(model, idx, joints)
+    frozen = _frozen_dofs(model, idx, joints) + [int(d) for f in held for d in idx.finger_dofs[f]]
     constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
 
     def tip_error() -> NDArray[np.float64]:

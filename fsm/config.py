@@ -76,6 +76,13 @@ class TaskConfig:
     #: lateral grasp up to it (docs/task_cycle.md, "Eq. 13's gate bounds the lateral grasp":
     #: at 0.6, 8 of those 20 delivered).
     lateral_gate: float = SUCCESS_THRESHOLD
+    #: Where no palm pose has a sampled grasp of four contacts within the gate, the lateral
+    #: pre-shape takes one of three: the thumb against two fingers, the third finger held
+    #: clear of the block (controllers.lateral_grasp.three_contact_lateral_grasp; Eq. 13 over
+    #: three contacts: a thumb against two fingers on parallel faces scores 0.33 where against
+    #: three it scores 0.50). Before the pinch pre-shape. Measured in docs/task_cycle.md,
+    #: "Three contacts where four cannot pass Eq. 13".
+    lateral_three_contacts: bool = True
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only

@@ -12,12 +12,13 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.finger_assignment import FingerContacts
 from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.composition import Composer
 from controllers.grasp.session import GraspSynthesis
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.grip import Grip
-from controllers.hand_reach import FingerContacts, HandReach
+from controllers.hand_reach import HandReach
 from controllers.reach import CoarseReachPlan, ReachTarget
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
@@ -95,6 +96,8 @@ class CycleRecord:
     #: blocks a later cycle could not model and passed over for the next one, and why
     skipped_not_modelled: list[str] = field(default_factory=list)
     contacts: list[list[float]] | None = None  #: world contact points, finger order
+    #: the fingers that took ``contacts`` (all four, or a three-contact lateral grasp's three)
+    contact_fingers: list[str] | None = None
     contact_theta: list[float] | None = None
     s_g: float | None = None
     synthesis_steps: int = 0

@@ -42,15 +42,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from controllers.cspace import CollisionChecker
 from controllers.fine_reach import GRASP_DEPTH, project_to_surface
+from controllers.finger_assignment import FingerContacts, contacts_at_tips, given_contacts
 from controllers.finger_geometry import PerceivedPrism, fingertips_at, pad_normals
-from controllers.hand_reach import (
-    MAX_PAD_ANGLE,
-    FingerContacts,
-    HandReach,
-    contacts_at_tips,
-    given_contacts,
-    grip_targets,
-)
+from controllers.hand_reach import MAX_PAD_ANGLE, HandReach, grip_targets
 from controllers.palm_candidates import DEFAULT_PALM_POSE, robot_base_xy
 from controllers.palm_pose import ReachQuery, SeedStart, search_seeds
 from controllers.posture import solve_posture

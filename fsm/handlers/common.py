@@ -10,13 +10,18 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.finger_assignment import FingerContacts
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
 from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
-from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH, FingerContacts
-from controllers.lateral_grasp import SampledGrasp, sampled_lateral_grasp
+from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH
+from controllers.lateral_grasp import (
+    SampledGrasp,
+    sampled_lateral_grasp,
+    three_contact_lateral_grasp,
+)
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
     LATERAL_ROLL_STEP,
@@ -61,6 +66,12 @@ def sampled_preshape(ep: Episode) -> bool:
     return slides(ep) and ep.preshape_hand_q is not None
 
 
+def idle_finger(ep: Episode) -> int | None:
+    """The finger that takes no contact in this cycle's grasp (a three-contact lateral
+    pre-shape's, :func:`controllers.lateral_grasp.three_contact_lateral_grasp`), or None."""
+    return ep.preshape_contacts.idle if sampled_preshape(ep) else None
+
+
 def block_site(ep: Episode) -> BlockSite:
     """The motion primitives' inputs for this cycle's block: the approach axis is the coarse
     reach's (straight down for a top grasp, along the arm's radius for a lateral one)."""
@@ -88,7 +99,8 @@ def reach_query(ep: Episode) -> ReachQuery:
     # its own face, where its sampled posture took it); a top 3-D grasp's fingers go to its
     # contacts' heights
     if sampled:
-        heights = ep.preshape_contacts.points[:, 2].copy()
+        contacts = ep.preshape_contacts
+        heights = contacts.points[contacts.pressing, 2].copy()
     else:
         heights = None if lateral else contact_heights(ep)
     return ReachQuery(
@@ -100,6 +112,7 @@ def reach_query(ep: Episode) -> ReachQuery:
         samples=finger_samples(ep) if lateral else None,
         squeeze=squeeze_reach(ep),
         heights=heights,
+        idle=idle_finger(ep),
     )
 
 
@@ -165,7 +178,8 @@ def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]
     :func:`side_arcs`)."""
     if sampled_preshape(ep):
         inset = ep.config.palm_pose.side_inset
-        return face_arcs(ep.target.polygon, ep.preshape_contacts.theta, inset)
+        contacts = ep.preshape_contacts
+        return face_arcs(ep.target.polygon, contacts.theta[contacts.pressing], inset)
     return arcs_of(side_arcs(ep), theta)
 
 
@@ -189,18 +203,21 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     ep.preshape_hand_q = None
     ep.preshape_rolls = None
     if ep.config.lateral_contacts == "sampled-first":
-        done = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
+        done, skipped = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
+        if done is None and ep.config.lateral_three_contacts:
+            # a regrasp passes over the four-contact poses it took before the three-contact ones
+            done, _ = _sampled_preshape(ep, skip - skipped, SUCCESS_THRESHOLD, three=True)
         if done is not None:
             return done
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
-        done = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
+        done, _ = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
         if done is not None:
             return done
     if not reached and ep.config.lateral_gate > SUCCESS_THRESHOLD:
         # a study's wider gate (TaskConfig.lateral_gate): a grasp above Eq. 13's 0.4, only here
-        done = _sampled_preshape(ep, skip, ep.config.lateral_gate)
+        done, _ = _sampled_preshape(ep, skip, ep.config.lateral_gate)
         if done is not None:
             return done
     if not pinch.found:
@@ -211,33 +228,37 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     return f"pinch pre-shape, {pinch.label} (reach load {pinch.load:.2f})"
 
 
-def _sampled_preshape(ep: Episode, skip: int, gate: float) -> str | None:
-    """:func:`lateral_preshape` from sampled contacts of S_G at most ``gate`` (Eq. 13); None
-    when no pose has such a sampled grasp that the hand reaches and approaches without
-    collision. The palm poses at the default wrist rolls are searched first; only where none
-    is taken, again with the poses at ``lateral_more_rolls`` after them (the hand upside down
-    or its finger row vertical), whose rolls Posture Control then keeps
-    (``ep.preshape_rolls``)."""
+def _sampled_preshape(
+    ep: Episode, skip: int, gate: float, three: bool = False
+) -> tuple[str | None, int]:
+    """:func:`lateral_preshape` from sampled contacts of S_G at most ``gate`` (Eq. 13), with
+    how many acceptable poses ``skip`` passed over; None when no pose has such a sampled grasp
+    that the hand reaches and approaches without collision (after ``skip`` of them). The palm
+    poses at the default wrist rolls are searched first; only where none is taken, again with
+    the poses at ``lateral_more_rolls`` after them (the hand upside down or its finger row
+    vertical), whose rolls Posture Control then keeps (``ep.preshape_rolls``). ``three``:
+    grasps of three contacts, the thumb's and two fingers'
+    (:func:`controllers.lateral_grasp.three_contact_lateral_grasp`)."""
     params = ep.config.palm_pose
     grasps: dict[int, SampledGrasp] = {}
     rolls_of: dict[int, tuple[float, ...]] = {}
-    poses = _sampled_poses(ep, params.lateral_rolls, gate, grasps)
+    poses = _sampled_poses(ep, params.lateral_rolls, gate, grasps, three=three)
     found = _search_sampled(ep, poses, grasps, skip) if poses else None
     if (found is None or not found.found) and params.lateral_more_rolls:
         for roll in params.lateral_more_rolls:
             turned = (roll, roll + LATERAL_ROLL_STEP, roll - LATERAL_ROLL_STEP)
             # searched after every pose at the default rolls (a group of their own)
-            for pose in _sampled_poses(ep, (roll,), gate, grasps, group_offset=1.0):
+            for pose in _sampled_poses(ep, (roll,), gate, grasps, 1.0, three):
                 rolls_of[id(pose)] = turned
                 poses.append(pose)
         found = _search_sampled(ep, poses, grasps, skip) if poses else None
     if found is None or not found.found:
-        return None
+        return None, 0 if found is None else found.skipped
     approach(block_site(ep), found.approach)
     ep.preshape_contacts = found.contacts
     ep.preshape_hand_q = found.hand_q
     ep.preshape_rolls = rolls_of.get(id(poses[found.start]))
-    return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})"
+    return f"sampled pre-shape, {found.label} (reach load {found.load:.2f})", skip
 
 
 def _sampled_poses(
@@ -246,10 +267,12 @@ def _sampled_poses(
     gate: float,
     grasps: dict[int, SampledGrasp],
     group_offset: float = 0.0,
+    three: bool = False,
 ) -> list[PalmPose]:
     """The palm poses beside the block at wrist ``rolls`` whose sampled grasp
     (:func:`controllers.lateral_grasp.sampled_lateral_grasp`) scores at most ``gate``, the hand
-    in the grasp's posture; each pose's grasp goes into ``grasps`` (by the pose's id)."""
+    in the grasp's posture; each pose's grasp goes into ``grasps`` (by the pose's id).
+    ``three``: the three-contact grasps instead."""
     params = replace(ep.config.palm_pose, lateral_rolls=rolls)
     query = reach_query(ep)
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
@@ -257,7 +280,8 @@ def _sampled_poses(
     pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
     poses: list[PalmPose] = []
     for pose in lateral_poses(where, params, side_arcs(ep), sampled=True):
-        grasp = sampled_lateral_grasp(
+        search = three_contact_lateral_grasp if three else sampled_lateral_grasp
+        grasp = search(
             ep.planning,
             pose.qpos,
             query.samples,
@@ -270,7 +294,8 @@ def _sampled_poses(
             continue  # only a start that is already a grasp (Eq. 13)
         qpos = pose.qpos.copy()
         qpos[hand_adr] = grasp.hand_q
-        label = f"{pose.label}, sampled contacts S_G {grasp.s_g:.3f}"
+        contacts = "sampled contacts" if grasp.idle is None else _three(grasp.idle)
+        label = f"{pose.label}, {contacts} S_G {grasp.s_g:.3f}"
         shaped = PalmPose(qpos, pose.group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
@@ -292,7 +317,14 @@ def _search_sampled(
         reachable_only=True,
         skip=skip,
         heights_of=lambda pose: grasps[id(pose)].points[:, 2],
+        idle_of=lambda pose: grasps[id(pose)].idle,
     )
+
+
+def _three(idle: int) -> str:
+    """A three-contact grasp, for the log."""
+    fingers = [f for k, f in enumerate(robot.FINGERS) if k != idle]
+    return f"three sampled contacts ({', '.join(fingers)}; {robot.FINGERS[idle]} held clear)"
 
 
 def _pinch_search(ep: Episode, skip: int) -> PalmPoseResult:

@@ -25,14 +25,17 @@ def grasp_object(ep: Episode) -> Step:
     site = block_site(ep)
     open_time = ep.config.motion.preshape_time
     unit = ep.target.polygon.unit_moment()
-    frames = unit.locate(contacts.theta)
-    shares = grasp_score(frames.point, frames.normal).normal_forces
+    pressing = contacts.pressing  # all four, or a three-contact grasp's three
+    frames = unit.locate(contacts.theta[pressing])
+    taken = grasp_score(frames.point, frames.normal).normal_forces
     grip_force = GRIP_FORCE
     if lateral:
         # the fingers' heights differ (the middle finger high, the thumb low): squeeze without
         # tipping the block, no finger harder than GRIP_FORCE
-        shares = balanced_shares(contacts.points, contacts.normals, shares)
-        grip_force = GRIP_FORCE * float(shares.mean() / shares.max())
+        taken = balanced_shares(contacts.points[pressing], contacts.normals[pressing], taken)
+        grip_force = GRIP_FORCE * float(taken.mean() / taken.max())
+    shares = np.zeros(len(robot.FINGERS))
+    shares[pressing] = taken
     retract(site)
     world.step(round(0.2 / world.model.opt.timestep))
     ep.empty_hand_force = world.wrist_wrench()[0]
@@ -49,6 +52,7 @@ def grasp_object(ep: Episode) -> Step:
         # hand may turn a pad that reaches round a corner onto its side)
         start=ep.reach.hand_q if lateral else None,
         squeeze_reach=squeeze_reach(ep),
+        idle=contacts.idle,
     )
     preshape(site, ep.grip.q_pre)
     closing = close(world, ep.grip)
@@ -81,8 +85,9 @@ def grasp_object(ep: Episode) -> Step:
             Failure.FINGERS_CANNOT_REACH,
             look=True,
         )
+    touching = "all four pads touch" if contacts.idle is None else "the three pads touch"
     return Step(
         State.DELIVER,
-        f"all four pads touch; squeezed to {np.round(result.touch, 1).tolist()} N "
+        f"{touching}; squeezed to {np.round(result.touch, 1).tolist()} N "
         f"(mean target {result.target.mean():.1f} N)",
     )

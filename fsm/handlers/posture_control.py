@@ -10,11 +10,12 @@ from dataclasses import replace
 import numpy as np
 
 from controllers.cspace import CollisionChecker
+from controllers.finger_assignment import ranked_assignments
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.grasp.session_lateral import LateralSynthesis3D
 from controllers.grasp.task_height import HEIGHT_GAP
 from controllers.grip import PRE_CONTACT
-from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets, ranked_assignments
+from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets
 from controllers.motion import approach, approach_touches, reposition
 from controllers.palm_candidates import PalmPose, PoseSetting, lateral_poses, roll_seeds, top_poses
 from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds

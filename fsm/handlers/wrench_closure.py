@@ -7,6 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.fine_reach import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
+from controllers.finger_assignment import FingerContacts
 from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.session import GraspSynthesis
 from controllers.grasp.session3d import GraspSynthesis3D
@@ -18,7 +19,6 @@ from controllers.hand_reach import (
     CONTACT_SEPARATION,
     MIN_PAD_SPACING,
     TOP_MARGIN,
-    FingerContacts,
     reachable_contacts,
 )
 from fsm.context import Episode
@@ -108,8 +108,9 @@ def wrench_closure(ep: Episode) -> Step:
         if slides(ep) and ep.preshape_contacts is not None:
             # a lateral grasp starts from the pre-shape's contacts, which the hand reaches, at
             # the heights its fingers took there
-            start = ep.preshape_contacts.theta.copy()
-            start_z = ep.preshape_contacts.points[:, 2].copy()
+            pressing = ep.preshape_contacts.pressing  # a three-contact grasp's three
+            start = ep.preshape_contacts.theta[pressing].copy()
+            start_z = ep.preshape_contacts.points[pressing, 2].copy()
         ep.synthesis = synthesis_for(ep, start, start_z)
         ep.last_reachable = None
         if slides(ep):
@@ -146,6 +147,7 @@ def wrench_closure(ep: Episode) -> Step:
             heights=query.heights,
             # an unreachable top grasp only needs the verdict (a lateral one keeps its heights)
             give_up=not query.slide,
+            idle=query.idle,
         )
         ep.contacts, ep.reach = contacts, reach
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
@@ -185,8 +187,10 @@ def wrench_closure(ep: Episode) -> Step:
     )
     record.converged = syn.converged
     record.s_g = float(score.s_g) if score.feasible else None
-    record.contacts = ep.contacts.points.round(5).tolist()
-    record.contact_theta = ep.contacts.theta.round(5).tolist()
+    pressing = ep.contacts.pressing  # the fingers that take a contact, in finger order
+    record.contacts = ep.contacts.points[pressing].round(5).tolist()
+    record.contact_theta = ep.contacts.theta[pressing].round(5).tolist()
+    record.contact_fingers = [robot.FINGERS[f] for f in pressing]
     if not syn.converged and not syn.stopped:
         raise TaskFailedError(
             Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
@@ -219,7 +223,8 @@ def _remember_if_reachable(ep: Episode) -> None:
     contacts the hand does not reach (single_square, single_trapezoid)."""
     syn = ep.synthesis
     query = reach_query(ep)
-    theta = ep.preshape_contacts.theta if sampled_preshape(ep) else syn.theta
+    shaped = ep.preshape_contacts
+    theta = shaped.theta[shaped.pressing] if sampled_preshape(ep) else syn.theta
     contacts, reach = reachable_contacts(
         ep.world,
         query.prism,
@@ -232,6 +237,7 @@ def _remember_if_reachable(ep: Episode) -> None:
         samples=query.samples,
         squeeze=query.squeeze,
         heights=query.heights,
+        idle=query.idle,
     )
     if reach.reachable:
         ep.last_reachable = (theta, contacts, reach, syn.steps)

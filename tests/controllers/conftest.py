@@ -1,11 +1,19 @@
-"""Fixtures of the controller tests: clutter3 with the arm driven to its coarse-reach goal."""
+"""Fixtures of the controller tests: clutter3 with the arm driven to its coarse-reach goal;
+single_square with the arm at its lateral goal, the palm poses beside it and the finger samples."""
 
 from __future__ import annotations
 
+import mujoco
+import numpy as np
 import pytest
 
 from controllers.arm_path import execute_path
-from controllers.reach import ReachTarget, plan_coarse_reach
+from controllers.cspace import CollisionChecker
+from controllers.finger_geometry import PerceivedPrism
+from controllers.finger_samples import FingerSamples
+from controllers.palm_candidates import PoseSetting, lateral_poses
+from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
+from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
@@ -26,3 +34,41 @@ def hovering() -> tuple[World, ReachTarget]:
     """clutter3 with the arm above the target block, and the target; one per test module (the
     tests of a module may move the arm and hand, so modules do not share it)."""
     return hover_over_target()
+
+
+@pytest.fixture(scope="module")
+def square() -> tuple[World, ReachTarget, PerceivedPrism, list]:
+    """single_square with the arm at its lateral coarse goal, and the sampled search's palm
+    poses beside the block."""
+    world = World.build(load_scene("single_square"))
+    target = ReachTarget.from_world(world, "square")
+    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
+    ((pos, rot),) = goal_poses(target, base)["lateral"]
+    goal = solve_goal(
+        CollisionChecker(world, hand_q=PRESHAPE), "lateral", [(pos, rot)], world.arm_qpos()
+    )
+    assert goal is not None
+    world.data.qpos[robot.arm_qpos_addresses(world.model)] = goal.q
+    mujoco.mj_forward(world.model, world.data)
+    prism = PerceivedPrism.of(target, world.scene.table.height)
+    poses = lateral_poses(PoseSetting(world, world.model, target, rot), sampled=True)
+    return world, target, prism, poses
+
+
+@pytest.fixture(scope="module")
+def samples() -> FingerSamples:
+    """The sampled finger postures of the lateral search (the default seed and count)."""
+    return FingerSamples.draw()
+
+
+def grasps_beside(square, samples, search, squeeze: float) -> list:
+    """(pose, grasp) at every palm pose beside single_square (``square``) where ``search``
+    (:func:`controllers.lateral_grasp.sampled_lateral_grasp` or its three-contact kin) finds a
+    grasp, the fingertips ``squeeze`` inside the faces."""
+    world, target, prism, poses = square
+    pose_xy = (np.asarray(target.position_xy), target.yaw)
+    found = [
+        (pose, search(world.model, pose.qpos, samples, prism, target.polygon, pose_xy, squeeze))
+        for pose in poses
+    ]
+    return [(pose, grasp) for pose, grasp in found if grasp is not None]

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from controllers.finger_assignment import assign_fingers
 from controllers.grasp import paper_object
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.session import GraspSynthesis, separate_contacts
 from controllers.grasp.trials import run_trials
-from controllers.hand_reach import assign_fingers
 from fsm import handlers
 from fsm.context import EpisodeOptions
 from fsm.machine import run_episode
