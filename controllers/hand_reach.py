@@ -1,6 +1,7 @@
 """Can the hand take these contacts? The reachability criterion of section 5.2 ("Wrench Closure":
 "the reachability criterion was extended to mark as unreachable configurations in which finger
-links penetrates the object") and the rule that assigns fingers to contacts.
+links penetrates the object"), over the assignments of contacts to fingers that
+:mod:`controllers.finger_assignment` ranks.
 
 The grasp controller moves virtual contacts on a polygon and knows nothing of fingers. Before a
 set of contacts is accepted, :func:`check_reach` asks, in this order:

@@ -206,11 +206,9 @@ def sampled_lateral_grasp(
     if best is None:
         return None
     s_g, load, pick = best
-    chosen = [int(c.sample[k]) for c, k in zip(per, pick, strict=True)]
-    hand = np.concatenate([samples.q[i, f] for f, i in enumerate(chosen)])
-    points = np.stack([c.point[k] for c, k in zip(per, pick, strict=True)])
-    theta = np.array([c.theta[k] for c, k in zip(per, pick, strict=True)])
-    return SampledGrasp(theta, points, hand, s_g, load)
+    fingers = list(range(len(robot.FINGERS)))
+    sample_of = {f: int(per[f].sample[k]) for f, k in zip(fingers, pick, strict=True)}
+    return _grasp(samples, per, fingers, pick, sample_of, s_g, load)
 
 
 def three_contact_lateral_grasp(
@@ -249,6 +247,21 @@ def three_contact_lateral_grasp(
     if best is None:
         return None
     s_g, load, idle, pressing, pick, sample_of = best
+    return _grasp(samples, per, pressing, pick, sample_of, s_g, load, idle)
+
+
+def _grasp(
+    samples: FingerSamples,
+    per: list[_Candidates],
+    pressing: list[int],
+    pick: tuple[int, ...],
+    sample_of: dict[int, int],
+    s_g: float,
+    load: float,
+    idle: int | None = None,
+) -> SampledGrasp:
+    """The grasp of candidate ``pick[i]`` of each pressing finger ``pressing[i]`` (``per``:
+    every finger's candidates), the hand in the samples ``sample_of`` (every finger's)."""
     hand = np.concatenate([samples.q[sample_of[f], f] for f in range(len(robot.FINGERS))])
     points = np.stack([per[f].point[k] for f, k in zip(pressing, pick, strict=True)])
     theta = np.array([per[f].theta[k] for f, k in zip(pressing, pick, strict=True)])
