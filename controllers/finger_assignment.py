@@ -23,6 +23,7 @@ from scipy.optimize import linear_sum_assignment
 from controllers.fine_reach import GRASP_DEPTH
 from controllers.finger_geometry import PerceivedPrism, fingertips_at
 from controllers.reach import ReachTarget
+from hand_sim import robot
 from hand_sim.world import World
 
 #: Contacts stay at least GRASP_DEPTH (m) below the block's top (where Fine Reach takes the
@@ -63,7 +64,13 @@ class FingerContacts:
     @property
     def pressing(self) -> NDArray[np.int64]:
         """The fingers that take a contact, in finger order."""
-        return np.array([f for f in range(len(self.theta)) if f != self.idle], dtype=np.int64)
+        return pressing_fingers(self.idle)
+
+
+def pressing_fingers(idle: int | None) -> NDArray[np.int64]:
+    """The fingers (ff, mf, rf, th indices, in order) that take a contact when ``idle`` (or
+    none, when None) takes none."""
+    return np.array([f for f in range(len(robot.FINGERS)) if f != idle], dtype=np.int64)
 
 
 def contacts_at_tips(
@@ -137,7 +144,7 @@ def ranked_assignments(
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     tips = world.fingertip_positions() if qpos is None else fingertips_at(model, qpos)
-    pressing = np.array([f for f in range(len(tips)) if f != idle])
+    pressing = pressing_fingers(idle)
     if len(th) != len(pressing):
         raise ValueError(f"{len(pressing)} fingers take contacts, got {len(th)} contacts")
     xy, nxy, z = contacts_at_tips(target, th, tips[pressing], prism.bottom)

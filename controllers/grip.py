@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import lsq_linear
 
 from controllers.errors import ReachError
+from controllers.finger_assignment import pressing_fingers
 from controllers.finger_geometry import PerceivedPrism, finger_clearance
 from controllers.hand_reach import SQUEEZE_REACH, grip_targets
 from controllers.posture import solve_posture
@@ -138,7 +139,7 @@ def plan_grip(
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
     shares = np.asarray(force_shares, dtype=float).copy()
-    pressing = np.array([f for f in range(len(robot.FINGERS)) if f != idle])
+    pressing = pressing_fingers(idle)
     if (
         shares.shape != (4,)
         or not np.all(np.isfinite(shares[pressing]))

@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.finger_assignment import pressing_fingers
 from controllers.finger_geometry import PerceivedPrism
 from controllers.finger_samples import Criteria, FingerSamples
 from controllers.grasp.polygon import Polygon
@@ -235,7 +236,7 @@ def three_contact_lateral_grasp(
     thumb = len(robot.FINGERS) - 1
     best = None
     for idle in range(thumb):
-        pressing = [f for f in range(len(robot.FINGERS)) if f != idle]
+        pressing = pressing_fingers(idle).tolist()
         found = _lowest_s_g([per[f] for f in pressing], polygon, params)
         if found is None:
             continue

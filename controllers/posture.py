@@ -266,6 +266,7 @@ def solve_posture(
     if goal.shape != (len(robot.FINGERS), 3) or not np.all(np.isfinite(goal)):
         raise PostureError(f"fingertip targets must be a finite (4, 3) array, got {goal.shape}")
     held = list(still)
+    pad_sites = np.array([model.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES])
     if held:
         goal = goal.copy()
         goal[held] = cfg.data.site_xpos[idx.tip_sites[held]]
@@ -276,8 +277,7 @@ def solve_posture(
         if centres.shape != goal.shape or not np.all(np.isfinite(centres)):
             raise PostureError(f"pad centres must be a finite (4, 3) array, got {centres.shape}")
         if held:
-            pad_ids = [model.site(robot.qualified(robot.PAD_CENTRE_SITES[f])).id for f in held]
-            centres[held] = cfg.data.site_xpos[pad_ids]
+            centres[held] = cfg.data.site_xpos[pad_sites[held]]
         pads = _point_tasks(robot.PAD_CENTRE_SITES, centres, PAD_CENTRE_COST)
     tips_and_pads = tips + pads
     if slide is not None:
@@ -359,7 +359,6 @@ def solve_posture(
     path = [snapshot()]
     m_start = log_manipulability(model, cfg.data, idx)
     iterations = 0
-    pad_sites = np.array([model.site(robot.qualified(s)).id for s in robot.PAD_CENTRE_SITES])
 
     def pad_error() -> float:
         if not pads:

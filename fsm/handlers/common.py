@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.finger_assignment import FingerContacts
+from controllers.finger_assignment import FingerContacts, pressing_fingers
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
 from controllers.grasp.score import SUCCESS_THRESHOLD
@@ -323,7 +323,7 @@ def _search_sampled(
 
 def _three(idle: int) -> str:
     """A three-contact grasp, for the log."""
-    fingers = [f for k, f in enumerate(robot.FINGERS) if k != idle]
+    fingers = [robot.FINGERS[f] for f in pressing_fingers(idle)]
     return f"three sampled contacts ({', '.join(fingers)}; {robot.FINGERS[idle]} held clear)"
 
 
