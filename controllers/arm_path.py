@@ -50,6 +50,9 @@ LINK_TRIES = 48
 #: Arm joint speed (rad/s) while executing a path.
 MAX_JOINT_SPEED = 0.8
 
+#: :class:`ArmPath` ``reason`` of a plan whose start posture is within the clearance of something.
+START_IN_COLLISION = "the start posture is in collision"
+
 
 @dataclass(frozen=True, eq=False)
 class ArmPath:
@@ -183,7 +186,7 @@ def plan_arm_path(
     rolled = np.array([*q_start[:ROLL], roll])
     lead = np.stack([q_start, rolled])
     if checker.collides(q_start):
-        return fail("the start posture is in collision")
+        return fail(START_IN_COLLISION)
     if first_collision(checker, lead) is not None:
         return fail("turning the wrist roll at the start collides")
     if checker.collides(q_goal):

@@ -367,21 +367,28 @@ class SqueezeResult:
     seconds: float
 
 
-def squeeze(world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME) -> SqueezeResult:
+def squeeze(
+    world: World, grip: Grip, *, max_time: float = SQUEEZE_TIME, seek: bool = False
+) -> SqueezeResult:
     """Regulate every finger's force into its face (the grip's normals; the tendon hand's
     estimate would otherwise count a pad dragging along the face as pressing) to its own target
     (its share of the grip) until all are within FORCE_TOLERANCE (or FORCE_FLOOR) of it; the
     fingers' servo targets then stay where the squeeze left them (the grip holds as a stiffness
-    while the arm lifts and carries)."""
+    while the arm lifts and carries). ``seek``: a pressing finger that feels nothing (its face moved
+    away as the others pressed) closes again at least at :data:`CLOSE_RATE`, as in
+    :func:`close`, rather than at the force loop's rate, which for a light finger of a balanced
+    lateral squeeze (a few tenths of a newton) is a few millimetres a second."""
     steps = control_steps(world)
     t0 = world.time
     settled_for = 0
     slack = np.maximum(FORCE_TOLERANCE * grip.forces, FORCE_FLOOR)
     sensed = world.touch(grip.normals)
     while world.time - t0 < max_time:
-        grip.progress = np.clip(
-            grip.progress + FORCE_GAIN * (grip.forces - sensed) * CONTROL_PERIOD, 0.0, MAX_PROGRESS
-        )
+        rate = FORCE_GAIN * (grip.forces - sensed)
+        if seek:
+            lost = (grip.forces > 0.0) & (sensed < TOUCH_THRESHOLD)
+            rate = np.where(lost, np.maximum(rate, CLOSE_RATE), rate)
+        grip.progress = np.clip(grip.progress + rate * CONTROL_PERIOD, 0.0, MAX_PROGRESS)
         world.set_hand_targets(grip.targets())
         world.step(steps)
         sensed = world.touch(grip.normals)  # read once per step: the next error and the test

@@ -10,13 +10,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.grasp.score import SUCCESS_THRESHOLD
+from controllers.grasp.score import SUCCESS_THRESHOLD, opposition_floor
 from controllers.grasp.task_height import HEIGHT_TRIES
 from controllers.motion import MotionParams
 from controllers.palm_candidates import PalmPoseParams
 
 #: Values of ``TaskConfig.lateral_contacts``.
 LATERAL_CONTACTS = ("pinch", "sampled", "sampled-first")
+#: Values of ``TaskConfig.lateral_gate_rule``.
+LATERAL_GATE_RULES = ("opposition", "paper")
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,23 @@ class TaskConfig:
     #: three it scores 0.50). Before the pinch pre-shape. Measured in docs/task_cycle.md,
     #: "Three contacts where four cannot pass Eq. 13".
     lateral_three_contacts: bool = True
+    #: How ``lateral_gate`` applies to a lateral grasp of n contacts. "opposition" (default):
+    #: S_G <= lateral_gate + (n - 2) / n, the gate counted from Eq. 13's floor for a thumb
+    #: against the other n - 1 fingers (controllers.grasp.score.opposition_floor: 0.5 for
+    #: four contacts, 1/3 for three), because a lateral hand's fingers all stand across the
+    #: block from its thumb; the gate's paper values, 0.4, before any grasp above them, and
+    #: before the pinch. "paper": S_G <= lateral_gate, whatever the hand (the rule before the
+    #: twenty-first session). Section 3.5 calls where the cutoff sits "completely arbitrary",
+    #: and section 5.2's Wrench Closure runs to convergence; measured in docs/task_cycle.md,
+    #: "Eq. 13's gate counted from the thumb's opposition".
+    lateral_gate_rule: str = "opposition"
+    #: A lateral squeeze's pressing finger that feels nothing closes again at the closing
+    #: speed (controllers.grip.squeeze ``seek``): a balanced lateral squeeze gives a light
+    #: finger a few tenths of a newton, and the force loop then moved it a few millimetres a
+    #: second towards a face the other fingers had pushed away (single_irregular_triangle's
+    #: middle finger, 0.0 of 0.28 N after 2 s). Measured in docs/task_cycle.md, "Eq. 13's gate
+    #: counted from the thumb's opposition".
+    lateral_squeeze_seek: bool = True
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only
@@ -130,6 +149,11 @@ class TaskConfig:
                 f"lateral_contacts must be one of {', '.join(LATERAL_CONTACTS)}; "
                 f"got {self.lateral_contacts!r}"
             )
+        if self.lateral_gate_rule not in LATERAL_GATE_RULES:
+            raise ValueError(
+                f"lateral_gate_rule must be one of {', '.join(LATERAL_GATE_RULES)}; "
+                f"got {self.lateral_gate_rule!r}"
+            )
         if isinstance(self.lift_retries, bool) or not (
             isinstance(self.lift_retries, int) and self.lift_retries >= 0
         ):
@@ -142,6 +166,13 @@ class TaskConfig:
                 f"lateral_gate must be a positive S_G (Eq. 13; the paper's is "
                 f"{SUCCESS_THRESHOLD}); got {self.lateral_gate!r}"
             )
+
+    def lateral_gate_for(self, contacts: int) -> float:
+        """The S_G (Eq. 13) a lateral grasp of ``contacts`` contacts must reach, by
+        ``lateral_gate_rule``."""
+        if self.lateral_gate_rule == "paper":
+            return self.lateral_gate
+        return self.lateral_gate + opposition_floor(contacts)
 
 
 DEFAULT_CONFIG = TaskConfig()

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsm.config import DEFAULT_CONFIG
+from fsm.config import DEFAULT_CONFIG, LATERAL_GATE_RULES
 from fsm.context import (
     APPROACH_CHOICES,
     CONTROLLERS,
@@ -125,9 +125,19 @@ def add_lateral_gate(ap: argparse.ArgumentParser) -> None:
         type=lateral_gate,
         default=DEFAULT_CONFIG.lateral_gate,
         metavar="S_G",
-        help="S_G (Eq. 13) a lateral grasp must reach; the default is the paper's. "
+        help="S_G (Eq. 13) a lateral grasp must reach, as --lateral-gate-rule counts it; the "
+        "default is the paper's. "
         "A study setting: above it, a lateral pre-shape scoring up to the gate "
         "is taken only where none scores the paper's (docs/task_cycle.md)",
+    )
+    ap.add_argument(
+        "--lateral-gate-rule",
+        choices=LATERAL_GATE_RULES,
+        default=DEFAULT_CONFIG.lateral_gate_rule,
+        help="how the gate applies to a lateral grasp of n contacts: opposition (default), "
+        "counted from Eq. 13's floor for the thumb against the other n-1 fingers, "
+        "(n-2)/n, after every grasp within the gate itself; paper, the gate itself "
+        "(docs/task_cycle.md)",
     )
 
 
@@ -312,7 +322,11 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         record=not args.no_record,
         models=None if args.models is None else Path(args.models),
         hand=args.hand,
-        config=replace(DEFAULT_CONFIG, lateral_gate=args.lateral_gate),
+        config=replace(
+            DEFAULT_CONFIG,
+            lateral_gate=args.lateral_gate,
+            lateral_gate_rule=args.lateral_gate_rule,
+        ),
     )
 
 

@@ -23,6 +23,17 @@ FRICTION = 1.0
 MIN_NORMAL_FORCE = 1.0
 
 
+def opposition_floor(n: int) -> float:
+    """Eq. 13's least S_G for ``n`` contacts of which one opposes the other ``n - 1`` across
+    parallel faces (a lateral hand's thumb against its fingers): every normal force is at least
+    1 (section 3.5), so the one pushes ``n - 1`` and ``z = 2 (n - 1)``, ``S_G = (n - 2) / n``
+    (0 for a pinch, 1/3 for three contacts, 1/2 for four). Balanced as the hand's kinematics
+    allow, such a grasp still scores this much above a grasp whose contacts share the load."""
+    if n < 2:
+        raise ValueError(f"an opposition takes at least two contacts, got {n}")
+    return (n - 2) / n
+
+
 @dataclass(frozen=True)
 class GraspScore:
     """S_G of one contact configuration. ``feasible`` is False (and ``s_g`` is inf) when no forces

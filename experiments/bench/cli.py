@@ -81,6 +81,7 @@ RESUME_KEYS = (
     "place_fallback",
     "hand",
     "lateral_gate",
+    "lateral_gate_rule",
 )
 #: Settings of a bench folder written before they existed (what those benches ran: the planar
 #: grasp model, one cycle, and a place point the hand could not set down at moved to a free slot
@@ -92,6 +93,7 @@ SETTING_DEFAULTS = {
     "place_fallback": "a free slot, unreported (old rule)",
     "hand": "servo",
     "lateral_gate": 0.4,
+    "lateral_gate_rule": "paper",
 }
 #: The command-line flag of a setting whose name is not the flag's.
 FLAG_OF = {"grasp_model": "model"}
@@ -318,6 +320,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "place_fallback": args.place_fallback,
         "hand": args.hand,
         "lateral_gate": args.lateral_gate,
+        "lateral_gate_rule": args.lateral_gate_rule,
     }
     done = _check_resume(out, settings, args.resume)
     finished = {int(line["seed"]) for line in done}
@@ -335,6 +338,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             place_fallback=args.place_fallback,
             hand=args.hand,
             lateral_gate=args.lateral_gate,
+            lateral_gate_rule=args.lateral_gate_rule,
         )
         for s in args.seeds
         if s not in finished

@@ -70,6 +70,7 @@ class Job:
     place_fallback: str = "none"  #: as fsm.run's --place-fallback
     hand: str = "tendon"  #: as fsm.run's --hand
     lateral_gate: float = 0.4  #: as fsm.run's --lateral-gate
+    lateral_gate_rule: str = "opposition"  #: as fsm.run's --lateral-gate-rule
 
 
 @dataclass(frozen=True)
@@ -152,7 +153,11 @@ def _episode(job: Job, *, record: bool) -> tuple[dict[str, Any], bytes | None]:
             record=record,
             models=None if job.models is None else Path(job.models),
             hand=job.hand,
-            config=replace(DEFAULT_CONFIG, lateral_gate=job.lateral_gate),
+            config=replace(
+                DEFAULT_CONFIG,
+                lateral_gate=job.lateral_gate,
+                lateral_gate_rule=job.lateral_gate_rule,
+            ),
         )
         rrd_path, summary_path = out_paths(options.out)
         extra: dict[str, Any] = {}

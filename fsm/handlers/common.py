@@ -194,30 +194,31 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     afterwards (:func:`contact_arcs`), and where no pose has such a grasp the pinch pre-shape's
     (the surface points nearest its fingertips, kept a pad spacing apart on the side arcs);
     "sampled", the pinch's first and the sampled ones where no pose reaches those; "pinch", the
-    pinch's only. When none is reached and ``config.lateral_gate`` is above Eq. 13's 0.4 (a
-    study's), the sampled grasps up to that gate; then the pinch's pose of least reach load,
-    taken all the same. The contacts, when the hand reaches them there, are kept
-    (``ep.preshape_contacts``) for Fine Reach and the grasp controller. Returns what was done,
-    for the log, or None when no pose is approached without collision."""
+    pinch's only. The sampled grasps come in bands of S_G (:func:`_gated_preshapes`): the
+    paper's 0.4 first, then up to the gate counted from the thumb's opposition
+    (``config.lateral_gate_rule`` "opposition"). By the rule "paper", when none is reached and
+    ``config.lateral_gate`` is above 0.4 (a study's), the sampled grasps up to that gate; then
+    the pinch's pose of least reach load, taken all the same. The contacts, when the hand
+    reaches them there, are kept (``ep.preshape_contacts``) for Fine Reach and the grasp
+    controller. Returns what was done, for the log, or None when no pose is approached without
+    collision."""
     ep.preshape_contacts = None
     ep.preshape_hand_q = None
     ep.preshape_rolls = None
     if ep.config.lateral_contacts == "sampled-first":
-        done, skipped = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
-        if done is None and ep.config.lateral_three_contacts:
-            # a regrasp passes over the four-contact poses it took before the three-contact ones
-            done, _ = _sampled_preshape(ep, skip - skipped, SUCCESS_THRESHOLD, three=True)
+        done = _gated_preshapes(ep, skip)
         if done is not None:
             return done
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
-        done, _ = _sampled_preshape(ep, skip, SUCCESS_THRESHOLD)
+        done, _ = _sampled_preshape(ep, skip, (-np.inf, SUCCESS_THRESHOLD), {})
         if done is not None:
             return done
-    if not reached and ep.config.lateral_gate > SUCCESS_THRESHOLD:
+    paper_rule = ep.config.lateral_gate_rule == "paper"
+    if not reached and paper_rule and ep.config.lateral_gate > SUCCESS_THRESHOLD:
         # a study's wider gate (TaskConfig.lateral_gate): a grasp above Eq. 13's 0.4, only here
-        done, _ = _sampled_preshape(ep, skip, ep.config.lateral_gate)
+        done, _ = _sampled_preshape(ep, skip, (-np.inf, ep.config.lateral_gate), {})
         if done is not None:
             return done
     if not pinch.found:
@@ -228,27 +229,55 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     return f"pinch pre-shape, {pinch.label} (reach load {pinch.load:.2f})"
 
 
+def _gated_preshapes(ep: Episode, skip: int) -> str | None:
+    """:func:`lateral_preshape`'s sampled pre-shapes, in order: four contacts within the
+    paper's 0.4 (Eq. 13), three within it (``config.lateral_three_contacts``), then, by
+    ``config.lateral_gate_rule`` "opposition", four and three above 0.4 up to the gate counted
+    from the thumb's opposition (:meth:`fsm.config.TaskConfig.lateral_gate_for`). A regrasp
+    (``skip``) passes over the poses the earlier bands took; each pose's grasp is searched once
+    a call."""
+    config = ep.config
+    bands = [(False, (-np.inf, SUCCESS_THRESHOLD))]
+    if config.lateral_three_contacts:
+        bands.append((True, (-np.inf, SUCCESS_THRESHOLD)))
+    if config.lateral_gate_rule == "opposition":
+        bands.append((False, (SUCCESS_THRESHOLD, config.lateral_gate_for(4))))
+        if config.lateral_three_contacts:
+            bands.append((True, (SUCCESS_THRESHOLD, config.lateral_gate_for(3))))
+    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]] = {}
+    for three, band in bands:
+        done, skipped = _sampled_preshape(ep, skip, band, memo, three)
+        if done is not None:
+            return done
+        skip -= skipped
+    return None
+
+
 def _sampled_preshape(
-    ep: Episode, skip: int, gate: float, three: bool = False
+    ep: Episode,
+    skip: int,
+    band: tuple[float, float],
+    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]],
+    three: bool = False,
 ) -> tuple[str | None, int]:
-    """:func:`lateral_preshape` from sampled contacts of S_G at most ``gate`` (Eq. 13), with
-    how many acceptable poses ``skip`` passed over; None when no pose has such a sampled grasp
-    that the hand reaches and approaches without collision (after ``skip`` of them). The palm
-    poses at the default wrist rolls are searched first; only where none is taken, again with
-    the poses at ``lateral_more_rolls`` after them (the hand upside down or its finger row
-    vertical), whose rolls Posture Control then keeps (``ep.preshape_rolls``). ``three``:
-    grasps of three contacts, the thumb's and two fingers'
+    """:func:`lateral_preshape` from sampled contacts of S_G above ``band[0]`` and at most
+    ``band[1]`` (Eq. 13), with how many acceptable poses ``skip`` passed over; None when no
+    pose has such a sampled grasp that the hand reaches and approaches without collision
+    (after ``skip`` of them). The palm poses at the default wrist rolls are searched first;
+    only where none is taken, again with the poses at ``lateral_more_rolls`` after them (the
+    hand upside down or its finger row vertical), whose rolls Posture Control then keeps
+    (``ep.preshape_rolls``). ``three``: grasps of three contacts, the thumb's and two fingers'
     (:func:`controllers.lateral_grasp.three_contact_lateral_grasp`)."""
     params = ep.config.palm_pose
     grasps: dict[int, SampledGrasp] = {}
     rolls_of: dict[int, tuple[float, ...]] = {}
-    poses = _sampled_poses(ep, params.lateral_rolls, gate, grasps, three=three)
+    poses = _sampled_poses(ep, params.lateral_rolls, band, grasps, memo, three=three)
     found = _search_sampled(ep, poses, grasps, skip) if poses else None
     if (found is None or not found.found) and params.lateral_more_rolls:
         for roll in params.lateral_more_rolls:
             turned = (roll, roll + LATERAL_ROLL_STEP, roll - LATERAL_ROLL_STEP)
             # searched after every pose at the default rolls (a group of their own)
-            for pose in _sampled_poses(ep, (roll,), gate, grasps, 1.0, three):
+            for pose in _sampled_poses(ep, (roll,), band, grasps, memo, 1.0, three):
                 rolls_of[id(pose)] = turned
                 poses.append(pose)
         found = _search_sampled(ep, poses, grasps, skip) if poses else None
@@ -264,34 +293,24 @@ def _sampled_preshape(
 def _sampled_poses(
     ep: Episode,
     rolls: tuple[float, ...],
-    gate: float,
+    band: tuple[float, float],
     grasps: dict[int, SampledGrasp],
+    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]],
     group_offset: float = 0.0,
     three: bool = False,
 ) -> list[PalmPose]:
     """The palm poses beside the block at wrist ``rolls`` whose sampled grasp
-    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`) scores at most ``gate``, the hand
-    in the grasp's posture; each pose's grasp goes into ``grasps`` (by the pose's id).
-    ``three``: the three-contact grasps instead."""
-    params = replace(ep.config.palm_pose, lateral_rolls=rolls)
-    query = reach_query(ep)
-    where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
+    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`) scores above ``band[0]`` and at
+    most ``band[1]``, the hand in the grasp's posture; each pose's grasp goes into ``grasps``
+    (by the pose's id). ``three``: the three-contact grasps instead. The grasps at each pose
+    are searched once per ``memo``."""
+    if (rolls, three) not in memo:
+        memo[rolls, three] = _pose_grasps(ep, rolls, three)
     hand_adr = robot.hand_qpos_addresses(ep.world.model)
-    pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
     poses: list[PalmPose] = []
-    for pose in lateral_poses(where, params, side_arcs(ep), sampled=True):
-        search = three_contact_lateral_grasp if three else sampled_lateral_grasp
-        grasp = search(
-            ep.planning,
-            pose.qpos,
-            query.samples,
-            query.prism,
-            ep.target.polygon,
-            pose_xy,
-            query.squeeze,
-        )
-        if grasp is None or grasp.s_g > gate:
-            continue  # only a start that is already a grasp (Eq. 13)
+    for pose, grasp in memo[rolls, three]:
+        if grasp is None or not band[0] < grasp.s_g <= band[1]:
+            continue  # only a start that is already a grasp (Eq. 13), in this band
         qpos = pose.qpos.copy()
         qpos[hand_adr] = grasp.hand_q
         contacts = "sampled contacts" if grasp.idle is None else _three(grasp.idle)
@@ -300,6 +319,35 @@ def _sampled_poses(
         grasps[id(shaped)] = grasp
         poses.append(shaped)
     return poses
+
+
+def _pose_grasps(
+    ep: Episode, rolls: tuple[float, ...], three: bool
+) -> list[tuple[PalmPose, SampledGrasp | None]]:
+    """Each palm pose beside the block at wrist ``rolls`` with its sampled grasp
+    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, or
+    :func:`~controllers.lateral_grasp.three_contact_lateral_grasp` when ``three``), None where
+    the hand's samples make none."""
+    params = replace(ep.config.palm_pose, lateral_rolls=rolls)
+    query = reach_query(ep)
+    where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
+    pose_xy = (np.asarray(ep.target.position_xy, dtype=float), float(ep.target.yaw))
+    search = three_contact_lateral_grasp if three else sampled_lateral_grasp
+    return [
+        (
+            pose,
+            search(
+                ep.planning,
+                pose.qpos,
+                query.samples,
+                query.prism,
+                ep.target.polygon,
+                pose_xy,
+                query.squeeze,
+            ),
+        )
+        for pose in lateral_poses(where, params, side_arcs(ep), sampled=True)
+    ]
 
 
 def _search_sampled(

@@ -67,7 +67,7 @@ def grasp_object(ep: Episode) -> Step:
             Failure.FINGERS_CANNOT_REACH,
             look=True,
         )
-    result = squeeze(world, ep.grip)
+    result = squeeze(world, ep.grip, seek=lateral and ep.config.lateral_squeeze_seek)
     ep.record.grip_forces = result.touch.round(3).tolist()
     ep.record.grip_target = result.target.round(3).tolist()
     if not result.settled:

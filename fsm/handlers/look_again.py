@@ -12,6 +12,7 @@ import numpy as np
 
 from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
+from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.grip import release
 from controllers.transport import retreat
 from fsm.context import Episode
@@ -32,15 +33,32 @@ def park_arm(ep: Episode) -> str:
     """Take the arm back to where it stood when the first Select/Model looked, so that the next
     look sees the table as the first did (Select/Model's guard: the arm is parked clear of the
     table; a hand left above the table hides blocks from the overhead camera, and its faces merge
-    with theirs). The path is planned among the blocks where they stand now. Returns what was
-    done, for the transition log."""
+    with theirs). The path is planned among the blocks where they stand now; where the retreat
+    left the hand within the planning clearance of something (a lateral hand backing out beside
+    a neighbour), the palm first rises straight up until it is clear
+    (:func:`controllers.delivery.rise_until_clear`, as a set-down's transit starts), and stays
+    risen when no path parks it (Coarse Reach then plans from a posture that is clear). Returns
+    what was done, for the transition log."""
     if ep.parked_arm is None:
         return "the arm stays where it retreated to"
-    path = plan_arm_path(CollisionChecker(ep.world), ep.world.arm_qpos(), ep.parked_arm)
+    checker = CollisionChecker(ep.world)
+    start = ep.world.arm_qpos()
+    risen = None
+    if checker.collides(start):
+        tight = CollisionChecker(ep.world, clearance=SET_DOWN_CLEARANCE)
+        risen = rise_until_clear(checker, tight, start)
+    first = ""
+    if risen is not None:  # clear of everything, parked or not: Coarse Reach starts from here
+        execute_path(ep.world, np.vstack([start[None], risen]))
+        first = f"the palm risen {len(risen) * RISE_STEP * 100:.0f} cm clear, "
+    path = plan_arm_path(checker, ep.world.arm_qpos(), ep.parked_arm)
     if not path.found:
-        return f"the arm stays where it retreated to (no path to its parked posture: {path.reason})"
+        return (
+            f"{first}the arm stays where it retreated to (no path to its parked posture: "
+            f"{path.reason})"
+        )
     execute_path(ep.world, path.path)
-    return "the arm is parked clear of the view"
+    return f"{first}the arm is parked clear of the view"
 
 
 def _seen_again(ep: Episode) -> tuple[ObjectModel, float] | str:

@@ -269,6 +269,9 @@ def _last_reachable_grasp(ep: Episode) -> bool:
 
 
 def _gate(ep: Episode) -> float:
-    """The S_G a grasp must reach (Eq. 13): 0.4, or a lateral grasp's
-    ``config.lateral_gate`` (a study's setting, 0.4 by default)."""
-    return ep.config.lateral_gate if slides(ep) else SUCCESS_THRESHOLD
+    """The S_G a grasp must reach (Eq. 13): 0.4, or a lateral grasp's gate for its number of
+    contacts (:meth:`fsm.config.TaskConfig.lateral_gate_for`: counted from the thumb's
+    opposition by default)."""
+    if not slides(ep):
+        return SUCCESS_THRESHOLD
+    return ep.config.lateral_gate_for(len(ep.synthesis.theta))

@@ -224,8 +224,11 @@ def test_a_wider_lateral_gate_takes_a_thumb_against_three_fingers_and_delivers(
     the paper's 0.4, so the default gate leaves it no pre-shape. With ``lateral_gate`` 0.6
     (a study setting) the pre-shape takes such a grasp, the hand holds the block at the lift,
     and it is delivered, judged physically; the summary records the gate. (Three-contact grasps,
-    which score 0.33 here and come before a grasp above 0.4, are switched off.)"""
-    config = replace(TaskConfig(), lateral_gate=0.6, lateral_three_contacts=False)
+    which score 0.33 here and come before a grasp above 0.4, are switched off, and the gate is
+    the S_G itself: ``lateral_gate_rule`` "paper".)"""
+    config = replace(
+        TaskConfig(), lateral_gate=0.6, lateral_three_contacts=False, lateral_gate_rule="paper"
+    )
     options = EpisodeOptions(
         scene="random",
         seed=91,
@@ -248,6 +251,7 @@ def test_a_wider_lateral_gate_takes_a_thumb_against_three_fingers_and_delivers(
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["options"]["config"]["lateral_gate"] == 0.6
+    assert summary["options"]["config"]["lateral_gate_rule"] == "paper"
 
 
 @pytest.mark.parametrize("gate", [0.0, -0.4, float("nan"), float("inf")])
@@ -257,6 +261,22 @@ def test_a_lateral_gate_that_is_not_a_positive_s_g_is_refused(gate: float) -> No
     every grasp or none."""
     with pytest.raises(ValueError, match=r"lateral_gate must be a positive S_G.*0\.4"):
         TaskConfig(lateral_gate=gate)
+
+
+def test_the_lateral_gate_counts_from_the_thumbs_opposition_by_default() -> None:
+    """``TaskConfig.lateral_gate_for``: by default a lateral grasp of n contacts passes at the
+    gate plus Eq. 13's floor for a thumb against n - 1 fingers (0.9 for four, 0.4 + 1/3 for
+    three, 0.4 for a pinch); by the rule "paper" at the gate itself; an unknown rule is an
+    error naming the two."""
+    config = TaskConfig()
+    assert config.lateral_gate_rule == "opposition"
+    assert config.lateral_gate_for(4) == pytest.approx(0.9)
+    assert config.lateral_gate_for(3) == pytest.approx(0.4 + 1.0 / 3.0)
+    assert config.lateral_gate_for(2) == pytest.approx(0.4)
+    paper = TaskConfig(lateral_gate_rule="paper", lateral_gate=0.6)
+    assert {paper.lateral_gate_for(n) for n in (2, 3, 4)} == {0.6}
+    with pytest.raises(ValueError, match="opposition, paper"):
+        TaskConfig(lateral_gate_rule="thumb")
 
 
 def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -> None:

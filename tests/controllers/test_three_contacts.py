@@ -12,7 +12,7 @@ import pytest
 
 from controllers.finger_assignment import ranked_assignments
 from controllers.finger_geometry import finger_clearance, fingertips_at
-from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
+from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score, opposition_floor
 from controllers.grip import GRIP_FORCE, plan_grip
 from controllers.hand_reach import check_reach
 from controllers.lateral_grasp import IDLE_CLEARANCE, three_contact_lateral_grasp
@@ -33,6 +33,29 @@ def test_eq13_scores_a_thumb_against_two_fingers_a_third_and_against_three_a_hal
     assert two.s_g == pytest.approx(1.0 / 3.0, abs=1e-6)
     assert three.s_g == pytest.approx(0.5, abs=1e-6)
     assert two.success and not three.success
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5])
+def test_the_opposition_floor_is_eq13_of_a_thumb_against_the_other_fingers(n: int) -> None:
+    """``opposition_floor(n)`` against Eq. 13's LP: one contact on y = -1 opposite n - 1 on y =
+    1 placed symmetrically about it scores exactly the floor (n - 2) / n, and moving the one
+    off the others' centre, or tilting a face, only raises S_G above it."""
+    up, down = [0.0, 1.0], [0.0, -1.0]
+    xs = np.linspace(-0.4, 0.4, n - 1) if n > 2 else np.zeros(1)
+    points = [[x, 1.0] for x in xs] + [[0.0, -1.0]]
+    normals = [up] * (n - 1) + [down]
+    assert grasp_score(points, normals).s_g == pytest.approx(opposition_floor(n), abs=1e-6)
+    off = [[x, 1.0] for x in xs] + [[0.3, -1.0]]
+    assert grasp_score(off, normals).s_g > opposition_floor(n) + 1e-3
+    tilted = np.array(normals, dtype=float)
+    tilted[0] = [np.sin(0.3), np.cos(0.3)]
+    assert grasp_score(points, tilted).s_g >= opposition_floor(n) - 1e-6
+
+
+def test_an_opposition_needs_two_contacts() -> None:
+    """One contact opposes nothing: an error, not a floor."""
+    with pytest.raises(ValueError, match="at least two contacts"):
+        opposition_floor(1)
 
 
 @pytest.fixture(scope="module")

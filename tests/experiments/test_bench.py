@@ -246,6 +246,7 @@ def test_wilson_interval_textbook_value() -> None:
         (["--hand", "banana"], "--hand"),
         (["--lateral-gate", "0"], "positive S_G"),
         (["--lateral-gate", "wide"], "--lateral-gate"),
+        (["--lateral-gate-rule", "thumb"], "--lateral-gate-rule"),
         (["--out", ""], "--out"),
     ],
 )
@@ -285,6 +286,25 @@ def test_the_lateral_gate_is_a_setting_of_the_bench_and_of_every_episode(
     assert "--lateral-gate 0.6" in bench_report._command(plan.settings, range(0, 2))
     paper = {**plan.settings, "lateral_gate": 0.4}
     assert "--lateral-gate" not in bench_report._command(paper, [0])
+
+
+def test_the_lateral_gate_rule_is_a_setting_of_the_bench_and_of_every_episode(
+    tmp_path: Path,
+) -> None:
+    """``--lateral-gate-rule`` reaches every job and the bench's settings; a folder from before
+    it was a setting ran the paper's rule (a resume reads it so, the report's command names
+    it), and the default, opposition, is left out of the command."""
+    plan = bench.plan_from_args([*QUICK, "--seeds", "0:2", "--out", str(tmp_path / "o")])
+    assert plan.settings["lateral_gate_rule"] == "opposition"
+    assert {j.lateral_gate_rule for j in plan.jobs} == {"opposition"}
+    assert "--lateral-gate-rule" not in bench_report._command(plan.settings, [0])
+    argv = [*QUICK, "--seeds", "0:2", "--lateral-gate-rule", "paper", "--out", str(tmp_path / "p")]
+    plan = bench.plan_from_args(argv)
+    assert {j.lateral_gate_rule for j in plan.jobs} == {"paper"}
+    assert "lateral_gate_rule" in bench.RESUME_KEYS
+    assert bench.SETTING_DEFAULTS["lateral_gate_rule"] == "paper"
+    old = {k: v for k, v in plan.settings.items() if k != "lateral_gate_rule"}
+    assert "--lateral-gate-rule paper" in bench_report._command(old, [0])
 
 
 def test_a_controller_without_models_is_refused_before_anything_runs(tmp_path, capsys) -> None:
@@ -342,8 +362,13 @@ def test_existing_results_need_resume_and_the_same_options(tmp_path: Path, capsy
     assert bench.main(argv) == 2
     (err,) = capsys.readouterr().err.strip().splitlines()
     assert "--hand servo" in err, err
+    # nor, written before the lateral gate's rule was a setting, on its default (opposition)
+    argv = [*argv, "--hand", "servo"]
+    assert bench.main(argv) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert "--lateral-gate-rule paper" in err, err
     # everything asked for is done: nothing runs, the report is rebuilt
-    assert bench.main([*argv, "--hand", "servo"]) == 0
+    assert bench.main([*argv, "--lateral-gate-rule", "paper"]) == 0
     assert (tmp_path / "results.jsonl").read_bytes() == before
     check_report(tmp_path)
 

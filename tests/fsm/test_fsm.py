@@ -275,6 +275,9 @@ def test_the_lateral_gate_reaches_the_episodes_config(tmp_path: Path) -> None:
     options = options_from_args(["--scene", "clutter3", "--lateral-gate", "0.6", *out])
     assert options.config.lateral_gate == 0.6
     assert options.config.lateral_contacts == "sampled-first"
+    assert options.config.lateral_gate_rule == "opposition"
+    paper = options_from_args(["--scene", "clutter3", "--lateral-gate-rule", "paper", *out])
+    assert paper.config.lateral_gate_rule == "paper" and paper.config.lateral_gate == 0.4
 
 
 @pytest.mark.parametrize(
@@ -294,6 +297,7 @@ def test_the_lateral_gate_reaches_the_episodes_config(tmp_path: Path) -> None:
         (["--hand", "banana"], "--hand"),
         (["--lateral-gate", "-0.5"], "positive S_G"),
         (["--lateral-gate", "inf"], "--lateral-gate"),
+        (["--lateral-gate-rule", "thumb"], "--lateral-gate-rule"),
         (["--out", ""], "--out"),
     ],
 )

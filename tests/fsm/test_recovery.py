@@ -20,6 +20,7 @@ from fsm.context import EpisodeOptions
 from fsm.layout import episode_scene
 from fsm.machine import run_episode
 from fsm.states import State, allowed
+from tests.fsm.lateral import lateral_episode
 
 #: The controller the episodes run (the shipped default).
 CONTROLLER = "pi"
@@ -188,16 +189,7 @@ def test_lift_retries_that_are_not_a_count_are_refused(retries: object) -> None:
 
 def _single_irregular_pentagon(out: Path, config: TaskConfig = DEFAULT_CONFIG):
     """``single_irregular_pentagon`` at seed 0, --approach lateral, tuned by ``config``."""
-    options = EpisodeOptions(
-        scene="single_irregular_pentagon",
-        seed=0,
-        controller=CONTROLLER,
-        approach="lateral",
-        out=out,
-        record=False,
-        config=config,
-    )
-    return run_episode(options)
+    return lateral_episode(out, "single_irregular_pentagon", 0, config)
 
 
 @pytest.mark.e2e
@@ -331,3 +323,18 @@ def test_a_place_point_the_held_hand_cannot_set_down_at_is_reached_turned(tmp_pa
     assert cycle["place_asked"] == cycle["place_used"] == list(scene.place)
     final = np.asarray(cycle["judgement"]["final_position"][:2])
     assert np.linalg.norm(final - np.asarray(scene.place)) < 0.02
+
+
+@pytest.mark.e2e
+def test_a_regrasp_that_starts_beside_a_neighbour_rises_clear_and_delivers(tmp_path: Path) -> None:
+    """Random scene 79 (two blocks), --approach lateral: the first squeeze does not settle, the
+    hand lets go and backs out, and no path parks the arm from there; the next Coarse Reach's
+    start is within the planning clearance of the block with the hand pre-shaped, so the palm
+    first rises straight up until it is clear, the reach is planned from there, and the block
+    is delivered (before: "no coarse path: lateral: the start posture is in collision")."""
+    result = _random_episode(79, tmp_path, approach="lateral", block_range=(1, 3))
+    reaches = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]
+    assert len(reaches) >= 2, reaches
+    assert "risen" not in reaches[0]
+    assert any("the palm first risen" in r for r in reaches[1:]), reaches
+    _delivered_physically(result)

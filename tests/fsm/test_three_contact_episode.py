@@ -9,10 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from experiments.bench.jobs import blocks_for_seed
-from fsm.config import DEFAULT_CONFIG, TaskConfig
-from fsm.context import EpisodeOptions
-from fsm.machine import run_episode
+from fsm.config import DEFAULT_CONFIG
+from tests.fsm.lateral import lateral_episode
 
 #: Random scene 19 with the bench's block count for it (two blocks; the target a rectangle,
 #: whose sampled four-contact grasps score S_G 0.50 at every palm pose: the thumb against three
@@ -20,34 +18,20 @@ from fsm.machine import run_episode
 SEED = 19
 
 
-def _lateral_episode(out: Path, config: TaskConfig = DEFAULT_CONFIG):
-    options = EpisodeOptions(
-        scene="random",
-        seed=SEED,
-        blocks=blocks_for_seed(SEED, 1, 3),
-        controller="pi",
-        approach="lateral",
-        out=out,
-        record=False,
-        config=config,
-    )
-    return run_episode(options)
-
-
 @pytest.mark.e2e
 def test_a_block_no_four_contact_grasp_passes_is_delivered_on_three(tmp_path: Path) -> None:
-    """Without three-contact grasps the lateral hand has no pre-shape for random scene 19's
-    rectangle (its four-contact grasps score 0.50 > 0.4) and the episode fails; with them
+    """Without three-contact grasps, by the paper's gate (``lateral_gate_rule`` "paper"), the
+    lateral hand has no pre-shape for random scene 19's rectangle (its four-contact grasps
+    score 0.50 > 0.4) and the episode fails; with them
     (the default) the pre-shape is the thumb, middle and ring fingers', the first finger held
     clear, and the block is lifted, carried and set down at the place point: the summary names
     the three fingers, their three contacts and an S_G within Eq. 13's 0.4."""
-    four = _lateral_episode(
-        tmp_path / "four", replace(DEFAULT_CONFIG, lateral_three_contacts=False)
-    )
+    off = replace(DEFAULT_CONFIG, lateral_three_contacts=False, lateral_gate_rule="paper")
+    four = lateral_episode(tmp_path / "four", "random", SEED, off)
     assert not four.success
     assert "no pre-shape" in four.visits[1].reason, four.visits[1].reason
 
-    result = _lateral_episode(tmp_path / "three")
+    result = lateral_episode(tmp_path / "three", "random", SEED)
     assert "three sampled contacts" in result.visits[1].reason, result.visits[1].reason
     assert result.success, f"{result.failure}: {result.failure_detail}"
     (cycle,) = result.cycles
