@@ -6,14 +6,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-import numpy as np
-
 from controllers.arm_path import START_IN_COLLISION, ArmPath, execute_path
 from controllers.cspace import CollisionChecker
-from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.reach import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
 from fsm.context import Episode
-from fsm.handlers.common import lateral_preshape
+from fsm.handlers.common import lateral_preshape, rise_clear
 from fsm.states import Failure, State, Step, TaskFailedError
 
 
@@ -26,7 +23,8 @@ def coarse_reach(ep: Episode) -> Step:
     plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     risen = ""
     if not plan.found and _start_in_collision(plan.candidates.values()):
-        height = _rise_clear(ep)
+        # the reach's checker: the planning model, the hand pre-shaped
+        height = rise_clear(ep, CollisionChecker(ep.world, hand_q=PRESHAPE, model=ep.planning))
         if height is not None:
             risen = f"; the palm first risen {height * 100:.0f} cm, clear of what it stood beside"
             plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
@@ -62,18 +60,3 @@ def _start_in_collision(paths: Iterable[ArmPath]) -> bool:
     """Whether a coarse path failed because the arm starts within the planning clearance of
     something (a regrasp's retreat may leave a lateral hand beside a neighbour)."""
     return any(not p.found and p.reason == START_IN_COLLISION for p in paths)
-
-
-def _rise_clear(ep: Episode) -> float | None:
-    """Raise the palm straight up until the arm, with the reach's pre-shaped hand, is clear of
-    everything (:func:`controllers.delivery.rise_until_clear`; each step checked with the hand
-    as it is); how far (m), or None when it cannot."""
-    world = ep.world
-    clear = CollisionChecker(world, hand_q=PRESHAPE, model=ep.planning)
-    tight = CollisionChecker(world, clearance=SET_DOWN_CLEARANCE, model=ep.planning)
-    start = world.arm_qpos()
-    risen = rise_until_clear(clear, tight, start)
-    if risen is None:
-        return None
-    execute_path(world, np.vstack([start[None], risen]))
-    return len(risen) * RISE_STEP

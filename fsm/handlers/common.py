@@ -10,6 +10,9 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.arm_path import execute_path
+from controllers.cspace import CollisionChecker
+from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.finger_assignment import FingerContacts, pressing_fingers
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
@@ -45,6 +48,25 @@ def slides(ep: Episode) -> bool:
     each finger's height on the block (a top grasp keeps its fingers at the depth they
     reached)."""
     return ep.coarse is not None and ep.coarse.approach == "lateral"
+
+
+def rise_clear(ep: Episode, clear: CollisionChecker) -> float | None:
+    """Raise the palm straight up until the arm is clear of everything by ``clear``
+    (:func:`controllers.delivery.rise_until_clear`, each step kept
+    :data:`~controllers.delivery.SET_DOWN_CLEARANCE` from everything with the hand as it is)
+    and move it there; how far (m), or None when it cannot rise clear (the arm stays)."""
+    tight = CollisionChecker(ep.world, clearance=SET_DOWN_CLEARANCE, model=clear.model)
+    start = ep.world.arm_qpos()
+    risen = rise_until_clear(clear, tight, start)
+    if risen is None:
+        return None
+    execute_path(ep.world, np.vstack([start[None], risen]))
+    return len(risen) * RISE_STEP
+
+
+#: Each palm pose beside the block with its sampled grasp (None where the samples make none),
+#: by the wrist rolls searched and whether the grasps are of three contacts.
+PoseGrasps = dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]]
 
 
 def finger_samples(ep: Episode) -> FingerSamples:
@@ -244,7 +266,7 @@ def _gated_preshapes(ep: Episode, skip: int) -> str | None:
         bands.append((False, (SUCCESS_THRESHOLD, config.lateral_gate_for(4))))
         if config.lateral_three_contacts:
             bands.append((True, (SUCCESS_THRESHOLD, config.lateral_gate_for(3))))
-    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]] = {}
+    memo: PoseGrasps = {}
     for three, band in bands:
         done, skipped = _sampled_preshape(ep, skip, band, memo, three)
         if done is not None:
@@ -257,7 +279,7 @@ def _sampled_preshape(
     ep: Episode,
     skip: int,
     band: tuple[float, float],
-    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]],
+    memo: PoseGrasps,
     three: bool = False,
 ) -> tuple[str | None, int]:
     """:func:`lateral_preshape` from sampled contacts of S_G above ``band[0]`` and at most
@@ -295,7 +317,7 @@ def _sampled_poses(
     rolls: tuple[float, ...],
     band: tuple[float, float],
     grasps: dict[int, SampledGrasp],
-    memo: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]],
+    memo: PoseGrasps,
     group_offset: float = 0.0,
     three: bool = False,
 ) -> list[PalmPose]:

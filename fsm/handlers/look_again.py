@@ -12,11 +12,10 @@ import numpy as np
 
 from controllers.arm_path import execute_path, plan_arm_path
 from controllers.cspace import CollisionChecker
-from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.grip import release
 from controllers.transport import retreat
 from fsm.context import Episode
-from fsm.handlers.common import slides
+from fsm.handlers.common import rise_clear, slides
 from fsm.handlers.select_model import adopt_model, log_view
 from fsm.perception import perceive
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -42,15 +41,10 @@ def park_arm(ep: Episode) -> str:
     if ep.parked_arm is None:
         return "the arm stays where it retreated to"
     checker = CollisionChecker(ep.world)
-    start = ep.world.arm_qpos()
-    risen = None
-    if checker.collides(start):
-        tight = CollisionChecker(ep.world, clearance=SET_DOWN_CLEARANCE)
-        risen = rise_until_clear(checker, tight, start)
     first = ""
-    if risen is not None:  # clear of everything, parked or not: Coarse Reach starts from here
-        execute_path(ep.world, np.vstack([start[None], risen]))
-        first = f"the palm risen {len(risen) * RISE_STEP * 100:.0f} cm clear, "
+    if checker.collides(ep.world.arm_qpos()):
+        height = rise_clear(ep, checker)  # parked or not, Coarse Reach starts from there
+        first = "" if height is None else f"the palm risen {height * 100:.0f} cm clear, "
     path = plan_arm_path(checker, ep.world.arm_qpos(), ep.parked_arm)
     if not path.found:
         return (
