@@ -168,8 +168,9 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--models {settings['models']}")
     if settings.get("lateral_gate", 0.4) != 0.4:
         parts.append(f"--lateral-gate {settings['lateral_gate']}")
-    if settings.get("lateral_gate_rule", "paper") != "opposition":
-        parts.append(f"--lateral-gate-rule {settings.get('lateral_gate_rule', 'paper')}")
+    rule = settings.get("lateral_gate_rule", "paper")  # bench folders from before ran "paper"
+    if rule != "opposition":
+        parts.append(f"--lateral-gate-rule {rule}")
     # always written: the default hand changed (servo before, tendon since)
     parts.append(f"--hand {settings.get('hand', 'servo')}")
     return " ".join(parts)

@@ -227,20 +227,21 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     ep.preshape_contacts = None
     ep.preshape_hand_q = None
     ep.preshape_rolls = None
+    memo: PoseGrasps = {}  # each palm pose's sampled grasp, searched once a call
     if ep.config.lateral_contacts == "sampled-first":
-        done = _gated_preshapes(ep, skip)
+        done = _gated_preshapes(ep, skip, memo)
         if done is not None:
             return done
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
-        done, _ = _sampled_preshape(ep, skip, (-np.inf, SUCCESS_THRESHOLD), {})
+        done, _ = _sampled_preshape(ep, skip, (-np.inf, SUCCESS_THRESHOLD), memo)
         if done is not None:
             return done
     paper_rule = ep.config.lateral_gate_rule == "paper"
     if not reached and paper_rule and ep.config.lateral_gate > SUCCESS_THRESHOLD:
         # a study's wider gate (TaskConfig.lateral_gate): a grasp above Eq. 13's 0.4, only here
-        done, _ = _sampled_preshape(ep, skip, (-np.inf, ep.config.lateral_gate), {})
+        done, _ = _sampled_preshape(ep, skip, (-np.inf, ep.config.lateral_gate), memo)
         if done is not None:
             return done
     if not pinch.found:
@@ -251,13 +252,13 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     return f"pinch pre-shape, {pinch.label} (reach load {pinch.load:.2f})"
 
 
-def _gated_preshapes(ep: Episode, skip: int) -> str | None:
+def _gated_preshapes(ep: Episode, skip: int, memo: PoseGrasps) -> str | None:
     """:func:`lateral_preshape`'s sampled pre-shapes, in order: four contacts within the
     paper's 0.4 (Eq. 13), three within it (``config.lateral_three_contacts``), then, by
     ``config.lateral_gate_rule`` "opposition", four and three above 0.4 up to the gate counted
     from the thumb's opposition (:meth:`fsm.config.TaskConfig.lateral_gate_for`). A regrasp
     (``skip``) passes over the poses the earlier bands took; each pose's grasp is searched once
-    a call."""
+    per ``memo``."""
     config = ep.config
     bands = [(False, (-np.inf, SUCCESS_THRESHOLD))]
     if config.lateral_three_contacts:
@@ -266,7 +267,6 @@ def _gated_preshapes(ep: Episode, skip: int) -> str | None:
         bands.append((False, (SUCCESS_THRESHOLD, config.lateral_gate_for(4))))
         if config.lateral_three_contacts:
             bands.append((True, (SUCCESS_THRESHOLD, config.lateral_gate_for(3))))
-    memo: PoseGrasps = {}
     for three, band in bands:
         done, skipped = _sampled_preshape(ep, skip, band, memo, three)
         if done is not None:
