@@ -19,10 +19,18 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull
 
 from controllers.cspace import CollisionChecker
 from controllers.grasp.polygon import Polygon
-from controllers.reach import LATERAL_DEPTH, ReachTarget, axis_pitch, lateral_frame
+from controllers.reach import (
+    LATERAL_DEPTH,
+    PITCH_TOLERANCE,
+    ReachTarget,
+    axis_pitch,
+    lateral_frame,
+)
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
 from hand_sim.world import World
@@ -165,7 +173,9 @@ def lateral_poses(
     rotation; :data:`controllers.reach.LATERAL_TILTS`), hand y up as the coarse reach put it,
     turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the block's
     nearest point along the axis (which passes LATERAL_DEPTH below the top of the block's
-    vertical axis), ``lateral_shifts`` aside; in order of the gap. The hand
+    vertical axis), ``lateral_shifts`` aside; in order of the gap. A pitched palm's face is
+    kept at least its gap clear of the block along its own axis (:func:`palm_plate_depth`): its
+    upper edge meets the block's top edge before its centre line meets the side. The hand
     takes the pinch pre-shape.
 
     With ``arcs`` (:func:`lateral_arcs`) the gaps are counted from where the side faces the
@@ -206,6 +216,10 @@ def lateral_poses(
                 rot = lateral_frame(radial, tilt, roll)
                 if up[2] < 0:  # hand y down: the coarse reach's frame turned about the axis
                     rot = rot @ np.diag([-1.0, -1.0, 1.0])
+                if tilt > PITCH_TOLERANCE:
+                    # a pitched face meets the block's top edge first: back it out along its
+                    # own (radial) axis until the face itself is ``gap`` clear
+                    palm -= max(0.0, gap - palm_plate_depth(target, palm, rot)) * rot[:, 2]
                 arm = checker.solve_ik(palm, rot, q_arm)
                 if not arm.found:
                     continue
@@ -218,6 +232,41 @@ def lateral_poses(
                 )
                 poses.append(PalmPose(qpos, gap, label))
     return poses
+
+
+#: Half the palm's face (m, hand x and y): the palm's collision box.
+PALM_HALF_FACE = (0.05, 0.05)
+#: How far below its top (m) :func:`palm_plate_depth` takes a block to reach: any block of the
+#: scenes (the table stops the palm before a taller one's foot would matter).
+BLOCK_DEPTH_BOUND = 0.5
+
+
+def palm_plate_depth(
+    target: ReachTarget, origin: NDArray[np.float64], frame: NDArray[np.float64]
+) -> float:
+    """How far (m) along ``frame``'s approach axis (its z column) from ``origin`` the palm's face
+    (PALM_HALF_FACE about the axis, hand x and y as ``frame`` has them) first meets the perceived
+    block (the convex hull of its footprint, from its top face down): the least
+    ``z . (p - origin)`` over the block's points ``p`` in the face's shadow along the axis, a
+    linear programme; ``inf`` when the shadow misses the block. A palm facing a vertical side
+    level meets the nearest point of the side; a palm pitched down meets the block's top edge
+    with its upper edge, further out than its centre's line does."""
+    hull = ConvexHull(target.footprint())
+    x, y, z = frame[:, 0], frame[:, 1], frame[:, 2]
+    a, b = PALM_HALF_FACE
+    rows = [np.append(eq[:2], 0.0) for eq in hull.equations]
+    bounds = [-eq[2] for eq in hull.equations]
+    for axis, half in ((x, a), (y, b)):
+        rows += [axis, -axis]
+        bounds += [half + axis @ origin, half - axis @ origin]
+    lp = linprog(
+        z,
+        A_ub=np.array(rows),
+        b_ub=np.array(bounds),
+        bounds=[(None, None), (None, None), (target.top_z - BLOCK_DEPTH_BOUND, target.top_z)],
+        method="highs",
+    )
+    return float(z @ (lp.x - origin)) if lp.status == 0 else float("inf")
 
 
 def top_poses(where: PoseSetting, params: PalmPoseParams = DEFAULT_PALM_POSE) -> list[PalmPose]:

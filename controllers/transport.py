@@ -10,6 +10,7 @@ against the palm's (slip), the wrist force/torque sensor (the table taking the w
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -48,6 +49,9 @@ MAX_UNLOAD = 0.005
 RETREAT_BACK = 0.06
 RETREAT_UP = 0.08
 RETREAT_TIME = 1.0
+#: A hand beside the block (a lateral grasp) first rises until its lowest fingertip is this far
+#: (m) above the block's top (:func:`retreat`).
+RETREAT_TOP_MARGIN = 0.01
 #: Pause (s) after each motion of Deliver (lift, carry, set-down, unload, retreat), the grip
 #: regulating if the hand holds the block: shorter than the servos' settling time after a reach
 #: (:data:`controllers.timing.SERVO_SETTLE_TIME`).
@@ -132,6 +136,14 @@ def lift(
     return LiftResult(
         palm_rise=checker.palm_pose(world.arm_qpos())[0][2] - p0,
         block_rise=world.block_pose(block)[0][2] - b0,
+    )
+
+
+def fingertips_z(world: World) -> NDArray[np.float64]:
+    """World heights (m) of the four fingertips (ff, mf, rf, th) where the simulation has them."""
+    m = world.model
+    return np.array(
+        [world.data.site_xpos[m.site(robot.hand_name(s)).id][2] for s in robot.FINGERTIP_SITES]
     )
 
 
@@ -251,11 +263,25 @@ def lower_until_supported(
     )
 
 
-def retreat(world: World, checker: CollisionChecker) -> NDArray[np.float64]:
-    """Back the palm off along its approach axis, then raise it; returns the palm position."""
+def retreat(
+    world: World, checker: CollisionChecker, clear_top: float | None = None
+) -> NDArray[np.float64]:
+    """Back the palm off along its approach axis, then raise it; returns the palm position.
+
+    A hand beside the block (a lateral grasp; ``clear_top``: the block's top, world z) first
+    rises straight up until its lowest fingertip is RETREAT_TOP_MARGIN above that top, at the
+    speed of the final rise: the released fingers stand round the block's side faces, some
+    beyond its far corners, and backing off along the axis first would drag the block with
+    them. Rising keeps every fingertip outside the block, whose side faces are vertical. Where
+    the arm cannot rise that far, it backs off from as high as it got."""
     q = world.arm_qpos()
     _, R = checker.palm_pose(q)
     approach = R[:, 2]
+    if clear_top is not None:
+        rise = clear_top + RETREAT_TOP_MARGIN - float(fingertips_z(world).min())
+        if rise > 0.0:
+            with contextlib.suppress(ReachError):
+                move_palm(world, checker, [0.0, 0.0, rise], RETREAT_TIME * rise / RETREAT_UP)
     move_palm(world, checker, -RETREAT_BACK * approach, RETREAT_TIME)
     move_palm(world, checker, [0.0, 0.0, RETREAT_UP], RETREAT_TIME)
     _hold(world, None, DELIVER_SETTLE_TIME)

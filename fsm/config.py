@@ -102,6 +102,11 @@ class TaskConfig:
     #: middle finger, 0.0 of 0.28 N after 2 s). Measured in docs/task_cycle.md, "Eq. 13's gate
     #: counted from the thumb's opposition".
     lateral_squeeze_seek: bool = True
+    #: A lateral hand leaving a block standing on the table rises until its fingertips clear
+    #: the block's top before it backs off (controllers.transport.retreat ``clear_top``): backing
+    #: off first dragged blocks set down upright 4-14 cm and tipped them (random 13, 43, 80).
+    #: Measured in docs/task_cycle.md, "A pitched palm's face, and a retreat that rises first".
+    lateral_retreat_rise: bool = True
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only

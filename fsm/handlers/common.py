@@ -50,6 +50,13 @@ def slides(ep: Episode) -> bool:
     return ep.coarse is not None and ep.coarse.approach == "lateral"
 
 
+def top_to_clear(ep: Episode) -> float | None:
+    """The block's top (world z) a lateral hand's fingertips rise above before it backs off
+    from a block left standing (:func:`controllers.transport.retreat`), None for a top grasp
+    or with ``lateral_retreat_rise`` off."""
+    return ep.target.top_z if slides(ep) and ep.config.lateral_retreat_rise else None
+
+
 def rise_clear(ep: Episode, clear: CollisionChecker) -> float | None:
     """Raise the palm straight up until the arm is clear of everything by ``clear``
     (:func:`controllers.delivery.rise_until_clear`, each step kept

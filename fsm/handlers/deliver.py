@@ -13,7 +13,7 @@ from controllers.grip import CONTROL_PERIOD, release
 from controllers.palm_candidates import robot_base_xy
 from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
 from fsm.context import CycleRecord, Episode
-from fsm.handlers.common import slides
+from fsm.handlers.common import slides, top_to_clear
 from fsm.handlers.look_again import grasp_again_or_fail, park_arm
 from fsm.judge import judge
 from fsm.layout import free_slot
@@ -161,7 +161,7 @@ def deliver(ep: Episode) -> Step:
             f"lowered {down.lowered * 100:.1f} cm; the hand still holds {down.load_after:.2f} N",
         )
     release(world, ep.grip)
-    retreat(world, checker)
+    retreat(world, checker, clear_top=top_to_clear(ep))
     world.step(round(0.5 / world.model.opt.timestep))
     verdict = judge(world, name, ep.place, record.lift_clearance, ep.others_before)
     record.judgement = {

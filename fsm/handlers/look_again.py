@@ -15,7 +15,7 @@ from controllers.cspace import CollisionChecker
 from controllers.grip import release
 from controllers.transport import retreat
 from fsm.context import Episode
-from fsm.handlers.common import rise_clear, slides
+from fsm.handlers.common import rise_clear, slides, top_to_clear
 from fsm.handlers.select_model import adopt_model, log_view
 from fsm.perception import perceive
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -84,7 +84,7 @@ def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp
     world = ep.world
     if ep.grip is not None:
         release(world, ep.grip)
-    retreat(world, CollisionChecker(world))
+    retreat(world, CollisionChecker(world), clear_top=top_to_clear(ep))
     parked = park_arm(ep)
     seen = _seen_again(ep)
     if isinstance(seen, str):

@@ -327,12 +327,16 @@ def test_a_place_point_the_held_hand_cannot_set_down_at_is_reached_turned(tmp_pa
 
 @pytest.mark.e2e
 def test_a_regrasp_that_starts_beside_a_neighbour_rises_clear_and_delivers(tmp_path: Path) -> None:
-    """Random scene 79 (two blocks), --approach lateral: the first squeeze does not settle, the
-    hand lets go and backs out, and no path parks the arm from there; the next Coarse Reach's
-    start is within the planning clearance of the block with the hand pre-shaped, so the palm
-    first rises straight up until it is clear, the reach is planned from there, and the block
-    is delivered (before: "no coarse path: lateral: the start posture is in collision")."""
-    result = _random_episode(79, tmp_path, approach="lateral", block_range=(1, 3))
+    """Random scene 79 (two blocks), --approach lateral, the hand backing off the block before
+    it rises (``lateral_retreat_rise`` off: the default rises first, and this start no longer
+    arises there; the rise in Coarse Reach stays for any start in collision): the first
+    squeeze does not settle, the hand lets go and backs out, and no path parks the arm from
+    there; the next Coarse Reach's start is within the planning clearance of the block with the
+    hand pre-shaped, so the palm first rises straight up until it is clear, the reach is
+    planned from there, and the block is delivered (before: "no coarse path: lateral: the start
+    posture is in collision")."""
+    backing = replace(DEFAULT_CONFIG, lateral_retreat_rise=False)
+    result = _random_episode(79, tmp_path, backing, approach="lateral", block_range=(1, 3))
     reaches = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]
     assert len(reaches) >= 2, reaches
     assert "risen" not in reaches[0]
