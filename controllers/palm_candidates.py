@@ -202,6 +202,7 @@ def lateral_poses(
         )
         near = max(near, float(((ends - centre[:2]) @ axis[:2]).min()) - params.side_inset)
     gaps = params.lateral_sampled_gaps if sampled else params.lateral_gaps
+    half_face = palm_half_face(where.planning)
     shifts = params.lateral_sampled_shifts if sampled else params.lateral_shifts
     poses = []
     for gap in gaps:
@@ -219,7 +220,8 @@ def lateral_poses(
                 if tilt > PITCH_TOLERANCE:
                     # a pitched face meets the block's top edge first: back it out along its
                     # own (radial) axis until the face itself is ``gap`` clear
-                    palm -= max(0.0, gap - palm_plate_depth(target, palm, rot)) * rot[:, 2]
+                    clear = palm_plate_depth(target, palm, rot, half_face)
+                    palm -= max(0.0, gap - clear) * rot[:, 2]
                 arm = checker.solve_ik(palm, rot, q_arm)
                 if not arm.found:
                     continue
@@ -234,18 +236,26 @@ def lateral_poses(
     return poses
 
 
-#: Half the palm's face (m, hand x and y): the palm's collision box.
-PALM_HALF_FACE = (0.05, 0.05)
 #: How far below its top (m) :func:`palm_plate_depth` takes a block to reach: any block of the
 #: scenes (the table stops the palm before a taller one's foot would matter).
 BLOCK_DEPTH_BOUND = 0.5
 
 
+def palm_half_face(model: mujoco.MjModel) -> tuple[float, float]:
+    """Half the palm's face (m, along hand x and y): its collision box in ``model``."""
+    size = model.geom_size[model.geom(robot.hand_name("palm_collision")).id]
+    return float(size[0]), float(size[1])
+
+
 def palm_plate_depth(
-    target: ReachTarget, origin: NDArray[np.float64], frame: NDArray[np.float64]
+    target: ReachTarget,
+    origin: NDArray[np.float64],
+    frame: NDArray[np.float64],
+    half_face: tuple[float, float],
 ) -> float:
     """How far (m) along ``frame``'s approach axis (its z column) from ``origin`` the palm's face
-    (PALM_HALF_FACE about the axis, hand x and y as ``frame`` has them) first meets the perceived
+    (``half_face`` about the axis, :func:`palm_half_face`; hand x and y as ``frame`` has them)
+    first meets the perceived
     block (the convex hull of its footprint, from its top face down): the least
     ``z . (p - origin)`` over the block's points ``p`` in the face's shadow along the axis, a
     linear programme; ``inf`` when the shadow misses the block. A palm facing a vertical side
@@ -253,7 +263,7 @@ def palm_plate_depth(
     with its upper edge, further out than its centre's line does."""
     hull = ConvexHull(target.footprint())
     x, y, z = frame[:, 0], frame[:, 1], frame[:, 2]
-    a, b = PALM_HALF_FACE
+    a, b = half_face
     rows = [np.append(eq[:2], 0.0) for eq in hull.equations]
     bounds = [-eq[2] for eq in hull.equations]
     for axis, half in ((x, a), (y, b)):

@@ -139,14 +139,6 @@ def lift(
     )
 
 
-def fingertips_z(world: World) -> NDArray[np.float64]:
-    """World heights (m) of the four fingertips (ff, mf, rf, th) where the simulation has them."""
-    m = world.model
-    return np.array(
-        [world.data.site_xpos[m.site(robot.hand_name(s)).id][2] for s in robot.FINGERTIP_SITES]
-    )
-
-
 def carry(
     world: World,
     path: ArrayLike,
@@ -278,7 +270,7 @@ def retreat(
     _, R = checker.palm_pose(q)
     approach = R[:, 2]
     if clear_top is not None:
-        rise = clear_top + RETREAT_TOP_MARGIN - float(fingertips_z(world).min())
+        rise = clear_top + RETREAT_TOP_MARGIN - float(world.fingertip_positions()[:, 2].min())
         if rise > 0.0:
             with contextlib.suppress(ReachError):
                 move_palm(world, checker, [0.0, 0.0, rise], RETREAT_TIME * rise / RETREAT_UP)

@@ -13,13 +13,16 @@ import pytest
 from controllers.grasp.polygon import Polygon
 from controllers.palm_candidates import (
     DEFAULT_PALM_POSE,
-    PALM_HALF_FACE,
     PoseSetting,
     lateral_poses,
+    palm_half_face,
     palm_plate_depth,
 )
 from controllers.reach import ReachTarget, lateral_frame
 from hand_sim import robot
+
+#: The palm's collision box, half its face (m): models/hand.xml's palm_collision.
+HALF_FACE = (0.05, 0.05)
 
 
 def _brute_depth(
@@ -35,7 +38,7 @@ def _brute_depth(
     zs = np.linspace(target.top_z - height, target.top_z, 81)
     pts = np.array([[x, y, z] for x, y in flat[inside] for z in zs])
     rel = pts - origin
-    a, b = PALM_HALF_FACE
+    a, b = HALF_FACE
     shadow = (np.abs(rel @ frame[:, 0]) <= a) & (np.abs(rel @ frame[:, 1]) <= b)
     return float((rel[shadow] @ frame[:, 2]).min()) if shadow.any() else float("inf")
 
@@ -65,7 +68,7 @@ def test_plate_depth_matches_a_brute_force_count(
     radial = np.array([0.98, 0.2, 0.0]) / np.hypot(0.98, 0.2)
     frame = lateral_frame(radial, np.deg2rad(tilt_deg), np.deg2rad(roll_deg))
     origin = np.array([0.45, 0.08, 0.10]) + shift * np.cross([0.0, 0.0, 1.0], radial)
-    exact = palm_plate_depth(target, origin, frame)
+    exact = palm_plate_depth(target, origin, frame, HALF_FACE)
     brute = _brute_depth(target, origin, frame, height=0.20)
     step = 0.075 / 120 + 0.20 / 80
     assert brute - step <= exact <= brute + 1e-9
@@ -82,13 +85,13 @@ def test_a_level_palm_meets_the_near_side_and_a_pitched_one_its_top_edge() -> No
     target = ReachTarget(polygon, (0.45, 0.0), 0.0, 0.20)
     origin = np.array([0.45, 0.0, 0.10])
     radial = np.array([1.0, 0.0, 0.0])
-    level = palm_plate_depth(target, origin, lateral_frame(radial, 0.0))
+    level = palm_plate_depth(target, origin, lateral_frame(radial, 0.0), HALF_FACE)
     assert level == pytest.approx(-0.025, abs=1e-9)
-    pitched = palm_plate_depth(target, origin, lateral_frame(radial, np.deg2rad(45.0)))
+    pitched = palm_plate_depth(target, origin, lateral_frame(radial, np.deg2rad(45.0)), HALF_FACE)
     assert pitched < -0.025 / np.cos(np.deg2rad(45.0)) - 0.01
     # beyond the block's top the shadow misses it
     above = origin + np.array([0.0, 0.0, 0.3])
-    assert palm_plate_depth(target, above, lateral_frame(radial, 0.0)) == float("inf")
+    assert palm_plate_depth(target, above, lateral_frame(radial, 0.0), HALF_FACE) == float("inf")
 
 
 @pytest.mark.parametrize("tilt_deg", [30.0, 45.0])
@@ -110,6 +113,7 @@ def test_pitched_palm_poses_keep_the_palm_clear_of_the_block(square, tilt_deg: f
     palm = m.geom(robot.hand_name("palm_collision")).id
     block = m.geom(f"{world.scene.target}_geom").id
     gap = min(DEFAULT_PALM_POSE.lateral_sampled_gaps)
+    assert palm_half_face(m) == HALF_FACE  # the box the poses keep clear is the model's
     fromto = np.zeros(6)
     for pose in poses:
         data.qpos[:] = pose.qpos
