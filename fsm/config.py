@@ -107,6 +107,18 @@ class TaskConfig:
     #: off first dragged blocks set down upright 4-14 cm and tipped them (random 13, 43, 80).
     #: Measured in docs/task_cycle.md, "A pitched palm's face, and a retreat that rises first".
     lateral_retreat_rise: bool = True
+    #: A lateral squeeze presses with the normal forces that hold the block's perceived weight
+    #: with the most friction to spare at the planned contacts, each at most GRIP_FORCE
+    #: (controllers.grasp.holding: a 3-D grasp force programme, clarabel); False: the shares
+    #: that balance the planned contacts by least squares, without the weight or the friction
+    #: cones (controllers.grip.balanced_shares). Measured in docs/task_cycle.md, "A squeeze that
+    #: holds the weight".
+    lateral_holding_forces: bool = True
+    #: The sampled lateral pre-shape search tries, within each band of S_G, the palm poses
+    #: whose grasp keeps a friction reserve by the 3-D model (controllers.lateral_squeeze)
+    #: before those whose grasp does not. Measured in docs/task_cycle.md, "A squeeze that holds
+    #: the weight".
+    lateral_reserve_first: bool = True
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only

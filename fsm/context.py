@@ -110,6 +110,10 @@ class CycleRecord:
     reach_reasons: list[str] = field(default_factory=list)
     grip_forces: list[float] | None = None  #: N per finger after the squeeze
     grip_target: list[float] | None = None
+    #: a lateral grasp's friction reserve (N) at its planned contacts, squeezed as hard in all as
+    #: the hand squeezes, by the 3-D grasp force programme (controllers.grasp.holding; None: a
+    #: top grasp, or no forces hold the weight by the model)
+    squeeze_reserve: float | None = None
     lift_height: float | None = None  #: m, block rise during the lift
     lift_slip: float | None = None  #: m, palm rise minus block rise
     lift_clearance: float = 0.0  #: m, highest block bottom above the table while carried

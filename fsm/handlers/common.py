@@ -16,7 +16,7 @@ from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.finger_assignment import FingerContacts, pressing_fingers
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
-from controllers.grasp.score import SUCCESS_THRESHOLD
+from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
 from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH
@@ -25,6 +25,7 @@ from controllers.lateral_grasp import (
     sampled_lateral_grasp,
     three_contact_lateral_grasp,
 )
+from controllers.lateral_squeeze import lateral_squeeze
 from controllers.motion import ApproachPlan, BlockSite, approach, approach_plan
 from controllers.palm_candidates import (
     LATERAL_ROLL_STEP,
@@ -99,6 +100,25 @@ def idle_finger(ep: Episode) -> int | None:
     """The finger that takes no contact in this cycle's grasp (a three-contact lateral
     pre-shape's, :func:`controllers.lateral_grasp.three_contact_lateral_grasp`), or None."""
     return ep.preshape_contacts.idle if sampled_preshape(ep) else None
+
+
+def block_centre(ep: Episode) -> NDArray[np.float64]:
+    """The perceived block's centre of mass (world, m): its footprint's centroid, half its
+    height below its top."""
+    return np.array([*ep.target.position_xy, ep.target.top_z - 0.5 * ep.model.height])
+
+
+def grasp_reserve(ep: Episode, grasp: SampledGrasp) -> float:
+    """A sampled lateral grasp's friction reserve (N) by the 3-D model, squeezed as Grasp
+    Object would squeeze it (:func:`controllers.lateral_squeeze.lateral_squeeze`); -inf where no
+    forces hold the weight."""
+    polygon = ep.target.polygon
+    normals_xy = place_polygon(polygon.locate(grasp.theta).normal, (0.0, 0.0), ep.target.yaw)
+    normals = np.column_stack([normals_xy, np.zeros(len(grasp.theta))])
+    unit = polygon.unit_moment().locate(grasp.theta)
+    planar = grasp_score(unit.point, unit.normal).normal_forces
+    squeeze = lateral_squeeze(grasp.points, normals, planar, ep.expected_load, block_centre(ep))
+    return -np.inf if squeeze.reserve is None else squeeze.reserve
 
 
 def block_site(ep: Episode) -> BlockSite:
@@ -347,6 +367,10 @@ def _sampled_poses(
         shaped = PalmPose(qpos, pose.group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
+    if ep.config.lateral_reserve_first:
+        # the grasps the 3-D model says hold the weight first, each part in its order
+        short = {id(p): grasp_reserve(ep, grasps[id(p)]) < 0.0 for p in poses}
+        poses.sort(key=lambda p: short[id(p)])
     return poses
 
 

@@ -12,6 +12,7 @@ from controllers.delivery import plan_delivery
 from controllers.grip import CONTROL_PERIOD, release
 from controllers.palm_candidates import robot_base_xy
 from controllers.transport import carry, held_load, lift, lower_until_supported, retreat
+from fsm.config import TaskConfig
 from fsm.context import CycleRecord, Episode
 from fsm.handlers.common import slides, top_to_clear
 from fsm.handlers.look_again import grasp_again_or_fail, park_arm
@@ -48,6 +49,31 @@ def _unreachable_detail(ep: Episode, tried: list[np.ndarray], reason: str) -> st
     return f"no set-down posture at {len(tried)} place slots ({slots}): {reason}"
 
 
+def lift_held(
+    load: float,
+    expected: float,
+    touch: np.ndarray,
+    floor: float,
+    forces: np.ndarray,
+    lateral: bool,
+    config: TaskConfig,
+) -> bool:
+    """Whether the hand holds the block after the lift, by what it senses: the wrist's ``load``
+    (N) at least ``config.min_held_share`` of the ``expected`` weight, and no more than one pad
+    lost (``touch`` (4,) at or below ``floor``). In a ``lateral`` grasp only the pads the
+    squeeze asked for at least ``config.carrying_share`` of its mean force (``forces`` (4,))
+    count (the others only touch lightly and may let go as the block settles), and none count
+    when the wrist weighs the block and two pads still feel it (the carry's own test): it has
+    settled onto those pads, or against the palm."""
+    held = load >= config.min_held_share * expected
+    lost = touch <= floor
+    if lateral:
+        lost &= forces >= config.carrying_share * forces.mean()
+        if held and int((touch > floor).sum()) >= 2:
+            return True
+    return held and int(lost.sum()) <= 1
+
+
 class _DroppedError(Exception):
     """Fewer than two pads have felt the carried block for ``drop_window`` periods."""
 
@@ -76,12 +102,9 @@ def deliver(ep: Episode) -> Step:
     record.lift_slip = float(lifted.slip)
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
     load = held_load(world, ep.empty_hand_force)
-    lost = world.touch() <= world.touch_floor
-    if slides(ep):
-        # a balanced lateral squeeze holds with two opposed pads; the others only touch lightly
-        # (balanced_shares) and may let go as the block settles in the grip
-        lost &= ep.grip.forces >= config.carrying_share * ep.grip.forces.mean()
-    if load < config.min_held_share * ep.expected_load or lost.sum() > 1:
+    if not lift_held(
+        load, ep.expected_load, world.touch(), world.touch_floor, ep.grip.forces, slides(ep), config
+    ):
         return grasp_again_or_fail(
             ep,
             f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "

@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.grasp.score import grasp_score
-from controllers.grip import GRIP_FORCE, balanced_shares, close, move_hand, plan_grip, squeeze
+from controllers.grip import GRIP_FORCE, close, move_hand, plan_grip, squeeze
+from controllers.lateral_squeeze import lateral_squeeze
 from controllers.motion import preshape, retract
 from fsm.context import Episode
-from fsm.handlers.common import block_site, slides, squeeze_reach
+from fsm.handlers.common import block_centre, block_site, slides, squeeze_reach
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
@@ -29,11 +30,9 @@ def grasp_object(ep: Episode) -> Step:
     frames = unit.locate(contacts.theta[pressing])
     taken = grasp_score(frames.point, frames.normal).normal_forces
     grip_force = GRIP_FORCE
+    reserve = ""
     if lateral:
-        # the fingers' heights differ (the middle finger high, the thumb low): squeeze without
-        # tipping the block, no finger harder than GRIP_FORCE
-        taken = balanced_shares(contacts.points[pressing], contacts.normals[pressing], taken)
-        grip_force = GRIP_FORCE * float(taken.mean() / taken.max())
+        taken, grip_force, reserve = _lateral_squeeze(ep, taken)
     shares = np.zeros(len(robot.FINGERS))
     shares[pressing] = taken
     retract(site)
@@ -89,5 +88,25 @@ def grasp_object(ep: Episode) -> Step:
     return Step(
         State.DELIVER,
         f"{touching}; squeezed to {np.round(result.touch, 1).tolist()} N "
-        f"(mean target {result.target.mean():.1f} N)",
+        f"(mean target {result.target.mean():.1f} N{reserve})",
     )
+
+
+def _lateral_squeeze(ep: Episode, planar: np.ndarray) -> tuple[np.ndarray, float, str]:
+    """A lateral grasp's squeeze (:func:`controllers.lateral_squeeze.lateral_squeeze`, sharing
+    its total out to hold the weight with ``config.lateral_holding_forces``): the pressing
+    fingers' forces, their mean (N) and, for the log, the contacts' friction reserve, which
+    the record keeps."""
+    contacts = ep.contacts
+    squeeze = lateral_squeeze(
+        contacts.points[contacts.pressing],
+        contacts.normals[contacts.pressing],
+        planar,
+        ep.expected_load,
+        block_centre(ep),
+        holding=ep.config.lateral_holding_forces,
+    )
+    if squeeze.reserve is None:
+        return squeeze.forces, squeeze.grip_force, "; no forces hold the weight by the 3-D model"
+    ep.record.squeeze_reserve = round(squeeze.reserve, 3)
+    return squeeze.forces, squeeze.grip_force, f"; friction reserve {squeeze.reserve:.2f} N"

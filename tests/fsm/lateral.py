@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from experiments.bench.jobs import blocks_for_seed
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.context import EpisodeOptions
 from fsm.machine import EpisodeResult, run_episode
+
+#: The lateral squeeze before the holding forces (issue 23, twenty-third session): the balanced
+#: shares, the pre-shape search blind to the friction reserve. The episodes written to show a
+#: recovery (a slip at the lift, a squeeze that falls short, a retreat that drags) run with it:
+#: with the holding squeeze their first grasp is another, or holds, and the recovery never runs.
+BALANCED_SQUEEZE = replace(
+    DEFAULT_CONFIG, lateral_holding_forces=False, lateral_reserve_first=False
+)
 
 
 def lateral_episode(

@@ -2,7 +2,8 @@
 ``TaskConfig.lateral_retreat_rise``, ``controllers.transport.retreat(clear_top=...)``): on
 random scene 80 (two blocks) the lateral grasp sets the triangle down upright at the place
 point; backing off first drags it away with the released fingers and tips it, rising first
-leaves it standing where it was set down. Judged physically (fsm.judge)."""
+leaves it standing where it was set down. Judged physically (fsm.judge). Both with the
+balanced squeeze (``BALANCED_SQUEEZE``), whose grasp this scene was traced with."""
 
 from __future__ import annotations
 
@@ -11,8 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from fsm.config import DEFAULT_CONFIG
-from tests.fsm.lateral import lateral_episode
+from tests.fsm.lateral import BALANCED_SQUEEZE, lateral_episode
 
 SEED = 80
 
@@ -25,7 +25,7 @@ def test_a_lateral_hand_rises_clear_before_it_backs_off_and_the_block_stays_put(
     the place point or tilted 10 deg or more ("not placed as asked"). Rising first (the
     default): the same grasp, carry and set-down, and the block stands within 20 mm of the
     place point, upright, no finger on it, its neighbour unmoved."""
-    off = replace(DEFAULT_CONFIG, lateral_retreat_rise=False)
+    off = replace(BALANCED_SQUEEZE, lateral_retreat_rise=False)
     dragged = lateral_episode(tmp_path / "back", "random", SEED, off)
     assert not dragged.success
     assert dragged.failure == "block not placed as asked", dragged.failure
@@ -33,7 +33,7 @@ def test_a_lateral_hand_rises_clear_before_it_backs_off_and_the_block_stays_put(
     j = before["judgement"]
     assert j["place_error_mm"] > 20.0 or j["tilt_deg"] >= 10.0, j
 
-    result = lateral_episode(tmp_path / "rise", "random", SEED)
+    result = lateral_episode(tmp_path / "rise", "random", SEED, BALANCED_SQUEEZE)
     assert result.success, f"{result.failure}: {result.failure_detail}"
     (cycle,) = result.cycles
     assert cycle["approach"] == "lateral"

@@ -20,7 +20,7 @@ from fsm.context import EpisodeOptions
 from fsm.layout import episode_scene
 from fsm.machine import run_episode
 from fsm.states import State, allowed
-from tests.fsm.lateral import lateral_episode
+from tests.fsm.lateral import BALANCED_SQUEEZE, lateral_episode
 
 #: The controller the episodes run (the shipped default).
 CONTROLLER = "pi"
@@ -201,13 +201,14 @@ def test_a_lateral_block_that_slips_at_the_lift_is_seen_again_and_grasped_from_t
     retry the episode ends there, a slip sensed by the pads and the wrist; with the default one
     the hand lets go, the arm parks, the overhead camera models the block again where it
     stands, and Coarse Reach takes the pre-shape at the next palm pose, whose grasp holds: the
-    block is delivered, judged physically."""
-    none = _single_irregular_pentagon(tmp_path / "none", replace(DEFAULT_CONFIG, lift_retries=0))
+    block is delivered, judged physically. Both with the balanced squeeze
+    (``BALANCED_SQUEEZE``; the holding squeeze's first grasp holds there)."""
+    none = _single_irregular_pentagon(tmp_path / "none", replace(BALANCED_SQUEEZE, lift_retries=0))
     assert not none.success
     assert none.failure == "block slipped during lift", none.failure_detail
     assert none.cycles[0]["block_at_failure"]["tilt_deg"] < 10.0  # it still stands
 
-    result = _single_irregular_pentagon(tmp_path / "one")
+    result = _single_irregular_pentagon(tmp_path / "one", BALANCED_SQUEEZE)
     back = [v for v in result.visits if v.next == State.COARSE_REACH.value and v.state == "Deliver"]
     assert len(back) == 1, [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
     assert back[0].reason.startswith("slipped at the lift")
@@ -334,8 +335,9 @@ def test_a_regrasp_that_starts_beside_a_neighbour_rises_clear_and_delivers(tmp_p
     there; the next Coarse Reach's start is within the planning clearance of the block with the
     hand pre-shaped, so the palm first rises straight up until it is clear, the reach is
     planned from there, and the block is delivered (before: "no coarse path: lateral: the start
-    posture is in collision")."""
-    backing = replace(DEFAULT_CONFIG, lateral_retreat_rise=False)
+    posture is in collision"). With the balanced squeeze (``BALANCED_SQUEEZE``), whose first
+    squeeze fell short here."""
+    backing = replace(BALANCED_SQUEEZE, lateral_retreat_rise=False)
     result = _random_episode(79, tmp_path, backing, approach="lateral", block_range=(1, 3))
     reaches = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]
     assert len(reaches) >= 2, reaches

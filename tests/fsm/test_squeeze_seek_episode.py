@@ -11,9 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from fsm.config import DEFAULT_CONFIG
 from fsm.states import State
-from tests.fsm.lateral import lateral_episode
+from tests.fsm.lateral import BALANCED_SQUEEZE, lateral_episode
 
 SCENE = "single_irregular_triangle"
 
@@ -29,13 +28,14 @@ def test_a_light_finger_that_loses_its_face_closes_again_and_the_block_is_delive
     """Without seeking (and no regrasp, so the episode ends there) the first squeeze does not
     reach the grip force, the middle finger at 0.0 N; with it (the default) the same grasp's
     squeeze settles with every pad pressing, and the block is lifted, carried and set down at
-    the place point."""
-    off = replace(DEFAULT_CONFIG, lateral_squeeze_seek=False, max_regrasps=0)
+    the place point. Both with the balanced squeeze (``BALANCED_SQUEEZE``: its shares asked the
+    middle finger for 0.33 N)."""
+    off = replace(BALANCED_SQUEEZE, lateral_squeeze_seek=False, max_regrasps=0)
     short = lateral_episode(tmp_path / "off", SCENE, 0, off)
     assert not short.success
     assert "squeeze did not reach the grip force (mf 0.0 N" in _grasp_object(short)
 
-    result = lateral_episode(tmp_path / "seek", SCENE, 0)
+    result = lateral_episode(tmp_path / "seek", SCENE, 0, BALANCED_SQUEEZE)
     assert "all four pads touch" in _grasp_object(result), _grasp_object(result)
     assert result.success, f"{result.failure}: {result.failure_detail}"
     (cycle,) = result.cycles
