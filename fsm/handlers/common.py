@@ -115,10 +115,17 @@ def grasp_reserve(ep: Episode, grasp: SampledGrasp) -> float:
     polygon = ep.target.polygon
     normals_xy = place_polygon(polygon.locate(grasp.theta).normal, (0.0, 0.0), ep.target.yaw)
     normals = np.column_stack([normals_xy, np.zeros(len(grasp.theta))])
-    unit = polygon.unit_moment().locate(grasp.theta)
-    planar = grasp_score(unit.point, unit.normal).normal_forces
+    planar = planar_normal_forces(ep, grasp.theta)
     squeeze = lateral_squeeze(grasp.points, normals, planar, ep.expected_load, block_centre(ep))
     return -np.inf if squeeze.reserve is None else squeeze.reserve
+
+
+def planar_normal_forces(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The normal forces (n,) of the S_G linear programme (Eq. 13) for contacts ``theta`` on the
+    perceived polygon, in its unit-moment frame: the squeeze's shares (a lateral squeeze's
+    prior)."""
+    frames = ep.target.polygon.unit_moment().locate(theta)
+    return grasp_score(frames.point, frames.normal).normal_forces
 
 
 def block_site(ep: Episode) -> BlockSite:

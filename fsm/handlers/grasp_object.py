@@ -5,12 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.grasp.score import grasp_score
 from controllers.grip import GRIP_FORCE, close, move_hand, plan_grip, squeeze
 from controllers.lateral_squeeze import lateral_squeeze
 from controllers.motion import preshape, retract
 from fsm.context import Episode
-from fsm.handlers.common import block_centre, block_site, slides, squeeze_reach
+from fsm.handlers.common import (
+    block_centre,
+    block_site,
+    planar_normal_forces,
+    slides,
+    squeeze_reach,
+)
 from fsm.handlers.regrasp import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
@@ -25,10 +30,8 @@ def grasp_object(ep: Episode) -> Step:
     lateral = slides(ep)
     site = block_site(ep)
     open_time = ep.config.motion.preshape_time
-    unit = ep.target.polygon.unit_moment()
     pressing = contacts.pressing  # all four, or a three-contact grasp's three
-    frames = unit.locate(contacts.theta[pressing])
-    taken = grasp_score(frames.point, frames.normal).normal_forces
+    taken = planar_normal_forces(ep, contacts.theta[pressing])
     grip_force = GRIP_FORCE
     reserve = ""
     if lateral:
