@@ -376,8 +376,7 @@ def _sampled_poses(
         poses.append(shaped)
     if ep.config.lateral_reserve_first:
         # the grasps the 3-D model says hold the weight first, each part in its order
-        short = {id(p): grasp_reserve(ep, grasps[id(p)]) < 0.0 for p in poses}
-        poses.sort(key=lambda p: short[id(p)])
+        poses.sort(key=lambda p: grasp_reserve(ep, grasps[id(p)]) < 0.0)  # key once per pose
     return poses
 
 
