@@ -24,8 +24,9 @@ from controllers.arm_path import (
     first_collision,
     plan_arm_path,
 )
-from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, rotation_error
+from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult, rotation_error
 from controllers.errors import ReachError
+from controllers.reach import IK_SEEDS
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -336,6 +337,36 @@ def _turned_seed(
     return best
 
 
+def set_down_ik(
+    checker: CollisionChecker,
+    p_high: NDArray[np.float64],
+    R: NDArray[np.float64],
+    seed: NDArray[np.float64],
+) -> IKResult:
+    """The arm posture holding the palm at ``p_high`` with orientation ``R``: by the damped least
+    squares from ``seed`` (the transit's start turned with the waist), and where that stalls or
+    collides, from the coarse reach's elbow-up seeds (:data:`controllers.reach.IK_SEEDS`, waist
+    towards the palm, ``seed``'s wrist roll), the collision-free solution nearest ``seed``.
+
+    From ``seed`` alone the least squares stalls where the waist's turn carries it past its
+    limit: a lateral hand held with the waist near its end stop and turned further (the joint
+    clips it, and the palm stays tens of centimetres short), or where its elbow folds the
+    forearm into the palm (docs/task_cycle.md)."""
+    first = checker.solve_ik(p_high, R, seed)
+    if first.found and not checker.collides(first.q):
+        return first
+    base = checker.data.xpos[checker.model.body(robot.arm_name("arm_base")).id]
+    waist = float(np.arctan2(p_high[1] - base[1], p_high[0] - base[0]))
+    found = [
+        ik
+        for ik in (checker.solve_ik(p_high, R, [waist, *s[:3], seed[-1]]) for s in IK_SEEDS)
+        if ik.found and not checker.collides(ik.q)
+    ]
+    if not found:
+        return first
+    return min(found, key=lambda ik: float(np.linalg.norm(ik.q - seed)))
+
+
 def _set_down_path(
     checker: CollisionChecker,
     descent: CollisionChecker,
@@ -355,7 +386,7 @@ def _set_down_path(
     clearance, and the posture at ``p_high`` may be within ``checker``'s of something: the
     transit then ends above it, where the hand is clear (:func:`rise_until_clear`)."""
     clearance = checker.clearance
-    h = checker.solve_ik(p_high, R, seed)
+    h = set_down_ik(checker, p_high, R, seed)
     d = checker.solve_ik(p_high + drop, R, h.q)
     if not (h.found and d.found):
         return None
