@@ -26,7 +26,7 @@ from controllers.arm_path import (
 )
 from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult, rotation_error
 from controllers.errors import ReachError
-from controllers.reach import IK_SEEDS
+from controllers.reach import seeded_postures
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -345,8 +345,8 @@ def set_down_ik(
 ) -> IKResult:
     """The arm posture holding the palm at ``p_high`` with orientation ``R``: by the damped least
     squares from ``seed`` (the transit's start turned with the waist), and where that stalls or
-    collides, from the coarse reach's elbow-up seeds (:data:`controllers.reach.IK_SEEDS`, waist
-    towards the palm, ``seed``'s wrist roll), the collision-free solution nearest ``seed``.
+    collides, from the coarse reach's elbow-up seeds (:func:`controllers.reach.seeded_postures`,
+    ``seed``'s wrist roll), the collision-free solution nearest ``seed``.
 
     From ``seed`` alone the least squares stalls where the waist's turn carries it past its
     limit: a lateral hand held with the waist near its end stop and turned further (the joint
@@ -355,16 +355,12 @@ def set_down_ik(
     first = checker.solve_ik(p_high, R, seed)
     if first.found and not checker.collides(first.q):
         return first
-    base = checker.data.xpos[checker.model.body(robot.arm_name("arm_base")).id]
-    waist = float(np.arctan2(p_high[1] - base[1], p_high[0] - base[0]))
-    found = [
-        ik
-        for ik in (checker.solve_ik(p_high, R, [waist, *s[:3], seed[-1]]) for s in IK_SEEDS)
-        if ik.found and not checker.collides(ik.q)
-    ]
-    if not found:
-        return first
-    return min(found, key=lambda ik: float(np.linalg.norm(ik.q - seed)))
+    near = min(
+        seeded_postures(checker, p_high, R, (seed[-1],)),
+        key=lambda ik: float(np.linalg.norm(ik.q - seed)),
+        default=None,
+    )
+    return first if near is None else near
 
 
 def _set_down_path(

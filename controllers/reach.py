@@ -13,6 +13,7 @@ are re-exported here so that ``from controllers.reach import plan_arm_path`` kee
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -26,7 +27,7 @@ from controllers.arm_path import (
     ArmPath,
     plan_arm_path,
 )
-from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker
+from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult
 from controllers.errors import ReachError
 from controllers.grasp.polygon import Polygon
 from hand_sim import robot
@@ -290,21 +291,33 @@ def solve_goal(
     """A collision-free IK solution for one of ``poses``, nearest the start posture."""
     best: ApproachGoal | None = None
     best_dist = np.inf
+    for pos, rot in poses:
+        for ik in seeded_postures(checker, pos, rot, (q_start[ROLL], 0.0)):
+            dist = float(np.linalg.norm(ik.q - q_start))
+            if dist < best_dist:
+                best_dist = dist
+                best = ApproachGoal(approach, ik.q, pos, rot)
+    return best
+
+
+def seeded_postures(
+    checker: CollisionChecker,
+    position: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+    rolls: tuple[float, ...],
+) -> Iterator[IKResult]:
+    """The IK solutions (found, collision-free) holding the palm at ``position`` with
+    ``rotation``, solved from each of :data:`IK_SEEDS` with the waist towards ``position`` and
+    each wrist roll of ``rolls``, in that order."""
     base = checker.data.xpos[
         mujoco.mj_name2id(checker.model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
     ]
-    for pos, rot in poses:
-        waist = float(np.arctan2(pos[1] - base[1], pos[0] - base[0]))
-        for seed in IK_SEEDS:
-            for roll in (q_start[ROLL], 0.0):
-                r = checker.solve_ik(pos, rot, [waist, *seed[:3], roll])
-                if not r.found or checker.collides(r.q):
-                    continue
-                dist = float(np.linalg.norm(r.q - q_start))
-                if dist < best_dist:
-                    best_dist = dist
-                    best = ApproachGoal(approach, r.q, pos, rot)
-    return best
+    waist = float(np.arctan2(position[1] - base[1], position[0] - base[0]))
+    for seed in IK_SEEDS:
+        for roll in rolls:
+            r = checker.solve_ik(position, rotation, [waist, *seed[:3], roll])
+            if r.found and not checker.collides(r.q):
+                yield r
 
 
 def plan_coarse_reach(
