@@ -72,6 +72,10 @@ class MotionParams:
     #: ``approach_step`` (m).
     approach_clearance: float = 0.003
     approach_step: float = 0.01
+    #: A lateral reposition backs the new posture out as far as its straight approach is clear
+    #: (:func:`clear_back`); False: as far as the hand backed out of where it was (before issue
+    #: 23's twenty-fifth session, when the move between them swept fingers through the block).
+    backin_as_clear: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,19 +170,30 @@ def backed_out(
 def clear_backoff(site: BlockSite) -> float:
     """How far (m, at most ``backoff``, in ``approach_step`` steps) the palm backs out along the
     approach axis from where the arm is, the hand held as it is, without a link touching the
-    perceived world (``reposition_clearance``; the full ``backoff`` when the hand touches it
-    already, as a finger on the block may): a lateral hand backing out towards the arm's base
-    may otherwise push a neighbour standing between the base and the block (issue 23:
-    ``--scene random --seed 1004 --blocks 2`` moved one 149 mm)."""
-    world, p = site.world, site.params
+    perceived world (:func:`clear_back` of the arm's posture): a lateral hand backing out
+    towards the arm's base may otherwise push a neighbour standing between the base and the
+    block (issue 23: ``--scene random --seed 1004 --blocks 2`` moved one 149 mm)."""
+    return clear_back(site, site.world.arm_qpos(), site.world.hand_qpos())
+
+
+def clear_back(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.float64]) -> float:
+    """How far (m, at most ``backoff``, in ``approach_step`` steps) the palm of the arm posture
+    ``arm_q`` backs out along the approach axis, the hand held at ``hand_q``, every step clear
+    of the perceived world (``reposition_clearance``); the full ``backoff`` when the hand
+    touches it at ``arm_q`` already (a finger on the block). :func:`reposition` backs a lateral
+    hand out of where it is this far, and the new posture before its straight approach: a hand
+    that backs out only a little from where it is must not move to the new posture backed out
+    as little, or the joint-space move there sweeps the fingers through the block (issue 23:
+    ``--scene random --seed 63 --blocks 3 --approach lateral`` knocked the hexagon off the
+    table)."""
+    p = site.params
     checker = CollisionChecker(
-        world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
+        site.world, model=site.planning, hand_q=hand_q, clearance=p.reposition_clearance
     )
-    q = world.arm_qpos()
-    if checker.collides(q):  # already touching (a finger on the block): the full back-out
+    if checker.collides(arm_q):
         return p.backoff
     clear = 0.0
-    for back, out in backed_out(checker, q, site.axis, _approach_steps(p)):
+    for back, out in backed_out(checker, arm_q, site.axis, _approach_steps(p)):
         if out is None or checker.collides(out):
             break
         clear = back
@@ -189,8 +204,9 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     """Take the arm and hand to a new posture near the block without sweeping a finger through
     it: retract the fingers, back the palm out along the approach by ``backoff`` (a lateral
     hand only as far as it stays clear, :func:`clear_backoff`), move the arm to the new
-    posture backed out likewise (:func:`move_backed_out`), shape the hand there, and
-    approach in a straight line."""
+    posture backed out likewise (a lateral one as far as its approach is clear,
+    :func:`clear_back`; :func:`move_backed_out`), shape the hand there, and approach in a
+    straight line."""
     world, p = site.world, site.params
     checker = CollisionChecker(world, model=site.planning)
     retract(site)
@@ -200,13 +216,16 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     axis = site.axis
     back = clear_backoff(site) if site.lateral else p.backoff
     move_palm(world, checker, -back * axis, p.backoff_time)
+    # the new posture backed out as far as its straight approach is clear (a lateral hand backs
+    # out of where it is only as far as it stays clear, which may be much less)
+    back_in = clear_back(site, arm_q, hand_q) if site.lateral and p.backin_as_clear else back
     p_new, R_new = checker.palm_pose(arm_q)
-    raised = checker.solve_ik(p_new - back * axis, R_new, arm_q)
+    raised = checker.solve_ik(p_new - back_in * axis, R_new, arm_q)
     if not raised.found:
         raise ReachError("the new arm posture cannot be approached along the hand's axis")
     move_backed_out(site, raised.q)
     move_hand(world, hand_q, p.preshape_time)  # then opens, clear of the block
-    move_palm(world, checker, back * axis, p.backoff_time)
+    move_palm(world, checker, back_in * axis, p.backoff_time)
     if not site.lateral:
         return
     # lateral: the arm lags its targets and its servos sag under the hand's weight, which moves

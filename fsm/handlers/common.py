@@ -374,10 +374,30 @@ def _sampled_poses(
         shaped = PalmPose(qpos, pose.group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
+    if ep.config.lateral_reserve_order:
+        return _by_reserve(ep, poses, grasps, group_offset)
     if ep.config.lateral_reserve_first:
         # the grasps the 3-D model says hold the weight first, each part in its order
         poses.sort(key=lambda p: grasp_reserve(ep, grasps[id(p)]) < 0.0)  # key once per pose
     return poses
+
+
+def _by_reserve(
+    ep: Episode, poses: list[PalmPose], grasps: dict[int, SampledGrasp], group_offset: float
+) -> list[PalmPose]:
+    """``poses`` in the order of their grasp's friction reserve (:func:`grasp_reserve`), the
+    most to spare first, each a group of its own (:func:`controllers.palm_pose.search_poses`
+    takes them in that order, from ``group_offset`` up), the reserve in its label; ``grasps``
+    re-keyed to them."""
+    reserves = {id(p): grasp_reserve(ep, grasps[id(p)]) for p in poses}
+    ordered = sorted(poses, key=lambda p: -reserves[id(p)])
+    ranked: list[PalmPose] = []
+    for rank, pose in enumerate(ordered):
+        label = f"{pose.label}, reserve {reserves[id(pose)]:.2f} N"
+        shaped = PalmPose(pose.qpos, group_offset + rank / (len(ordered) + 1), label)
+        grasps[id(shaped)] = grasps.pop(id(pose))
+        ranked.append(shaped)
+    return ranked
 
 
 def _pose_grasps(

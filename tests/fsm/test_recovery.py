@@ -227,11 +227,14 @@ def test_a_lateral_block_that_slips_at_the_lift_is_seen_again_and_grasped_from_t
 
 @pytest.mark.e2e
 def test_a_lateral_regrasp_after_a_finger_missed_looks_at_the_block_again(tmp_path: Path) -> None:
-    """Random scene 93 (two blocks), --approach lateral: the thumb misses the irregular hexagon
-    as the hand closes, and the fingers that touched it have pushed it centimetres from where
-    Select/Model saw it (a regrasp planned on the old model missed it four times over). The
-    hand lets go, the arm parks, the camera models the block where it now stands, Coarse Reach
-    takes the next palm pose's pre-shape, and the block is delivered, judged physically."""
+    """Random scene 93 (two blocks), --approach lateral, the pre-shape's reposition as before
+    issue 23's twenty-fifth session (``MotionParams.backin_as_clear`` off: the move to the
+    pre-shape pose swept the fingers past the block; with it on the first grasp holds and this
+    recovery never runs): the thumb misses the irregular hexagon as the hand closes, and the
+    fingers that touched it have pushed it centimetres from where Select/Model saw it (a
+    regrasp planned on the old model missed it four times over). The hand lets go, the arm
+    parks, the camera models the block where it now stands, Coarse Reach takes the next palm
+    pose's pre-shape, and the block is delivered, judged physically."""
     options = EpisodeOptions(
         scene="random",
         seed=93,
@@ -240,6 +243,9 @@ def test_a_lateral_regrasp_after_a_finger_missed_looks_at_the_block_again(tmp_pa
         approach="lateral",
         out=tmp_path,
         record=False,
+        config=replace(
+            DEFAULT_CONFIG, motion=replace(DEFAULT_CONFIG.motion, backin_as_clear=False)
+        ),
     )
     result = run_episode(options)
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]
