@@ -363,41 +363,36 @@ def _sampled_poses(
     if (rolls, three) not in memo:
         memo[rolls, three] = _pose_grasps(ep, rolls, three)
     hand_adr = robot.hand_qpos_addresses(ep.world.model)
+    # only a start that is already a grasp (Eq. 13), in this band
+    kept = [
+        (pose, grasp)
+        for pose, grasp in memo[rolls, three]
+        if grasp is not None and band[0] < grasp.s_g <= band[1]
+    ]
+    by_reserve = ep.config.lateral_reserve_order
+    reserves: dict[int, float] = {}
+    if by_reserve:
+        # the most friction to spare first, each pose a group of its own (search_poses takes
+        # the groups in order)
+        reserves = {id(grasp): grasp_reserve(ep, grasp) for _, grasp in kept}
+        kept.sort(key=lambda pg: -reserves[id(pg[1])])
     poses: list[PalmPose] = []
-    for pose, grasp in memo[rolls, three]:
-        if grasp is None or not band[0] < grasp.s_g <= band[1]:
-            continue  # only a start that is already a grasp (Eq. 13), in this band
+    for rank, (pose, grasp) in enumerate(kept):
         qpos = pose.qpos.copy()
         qpos[hand_adr] = grasp.hand_q
         contacts = "sampled contacts" if grasp.idle is None else _three(grasp.idle)
         label = f"{pose.label}, {contacts} S_G {grasp.s_g:.3f}"
-        shaped = PalmPose(qpos, pose.group + group_offset, label)
+        group = pose.group
+        if by_reserve:
+            label += f", reserve {reserves[id(grasp)]:.2f} N"
+            group = rank / (len(kept) + 1)
+        shaped = PalmPose(qpos, group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
-    if ep.config.lateral_reserve_order:
-        return _by_reserve(ep, poses, grasps, group_offset)
-    if ep.config.lateral_reserve_first:
+    if ep.config.lateral_reserve_first and not by_reserve:
         # the grasps the 3-D model says hold the weight first, each part in its order
         poses.sort(key=lambda p: grasp_reserve(ep, grasps[id(p)]) < 0.0)  # key once per pose
     return poses
-
-
-def _by_reserve(
-    ep: Episode, poses: list[PalmPose], grasps: dict[int, SampledGrasp], group_offset: float
-) -> list[PalmPose]:
-    """``poses`` in the order of their grasp's friction reserve (:func:`grasp_reserve`), the
-    most to spare first, each a group of its own (:func:`controllers.palm_pose.search_poses`
-    takes them in that order, from ``group_offset`` up), the reserve in its label; ``grasps``
-    re-keyed to them."""
-    reserves = {id(p): grasp_reserve(ep, grasps[id(p)]) for p in poses}
-    ordered = sorted(poses, key=lambda p: -reserves[id(p)])
-    ranked: list[PalmPose] = []
-    for rank, pose in enumerate(ordered):
-        label = f"{pose.label}, reserve {reserves[id(pose)]:.2f} N"
-        shaped = PalmPose(pose.qpos, group_offset + rank / (len(ordered) + 1), label)
-        grasps[id(shaped)] = grasps.pop(id(pose))
-        ranked.append(shaped)
-    return ranked
 
 
 def _pose_grasps(
