@@ -81,7 +81,7 @@ class ArmPath:
         return float(np.linalg.norm(self.path[-1] - self.path[0])) if len(self.path) else 0.0
 
 
-def _interpolate(path: NDArray[np.float64], max_step: float) -> NDArray[np.float64]:
+def interpolate_path(path: NDArray[np.float64], max_step: float) -> NDArray[np.float64]:
     """Insert postures so that no joint moves more than ``max_step`` between rows."""
     out = [path[:1]]
     for a, b in itertools.pairwise(path):
@@ -94,7 +94,7 @@ def first_collision(
     checker: CollisionChecker, path: NDArray[np.float64], *, max_step: float = VERIFY_STEP
 ) -> NDArray[np.float64] | None:
     """The first posture along ``path`` (checked every ``max_step`` rad) that collides, if any."""
-    dense = _interpolate(np.asarray(path, float), max_step)
+    dense = interpolate_path(np.asarray(path, float), max_step)
     for q in dense:
         if checker.collides(q):
             return q
@@ -287,7 +287,7 @@ def execute_path(
         for _ in range(round(settle / CONTROL_PERIOD)):
             world.step(steps)
             seen |= robot_contacts(world)
-    dense = _interpolate(path, max_joint_speed * CONTROL_PERIOD)
+    dense = interpolate_path(path, max_joint_speed * CONTROL_PERIOD)
     for q in dense:
         world.set_arm_targets(q)
         world.step(steps)

@@ -52,6 +52,17 @@ class Contact:
 
 
 @dataclass(frozen=True, eq=False)
+class Nearest:
+    """The closest robot-environment pair at one posture
+    (:meth:`CollisionChecker.nearest_obstacle`)."""
+
+    robot_geom: str
+    env_geom: str
+    distance: float  #: signed distance (m); negative = penetration
+    away: NDArray[np.float64]  #: (3,) unit normal moving the robot away from the obstacle
+
+
+@dataclass(frozen=True, eq=False)
 class Scan:
     """Collision status of many arm configurations."""
 
@@ -238,6 +249,32 @@ class CollisionChecker:
                     )
                 )
         return out
+
+    def nearest_obstacle(self, q_arm: ArrayLike) -> Nearest | None:
+        """The closest robot-environment pair within the clearance at ``q_arm`` (5,), with the
+        unit normal that moves the robot away from it; None when no pair is within the
+        clearance, or when one is a pair of the robot's own links (moving the whole robot does
+        not part those)."""
+        self._set_arm(q_arm)
+        mujoco.mj_collision(self.model, self.data)
+        best: Nearest | None = None
+        for c in self.data.contact[: self.data.ncon]:
+            if c.dist >= self.clearance:
+                continue
+            env1, env2 = self.kind[c.geom1] == "env", self.kind[c.geom2] == "env"
+            if env1 == env2:
+                return None
+            if best is None or c.dist < best.distance:
+                # MuJoCo's contact normal points from geom1 to geom2
+                away = np.array(c.frame[:3]) * (1.0 if env1 else -1.0)
+                robot_geom, env_geom = (c.geom2, c.geom1) if env1 else (c.geom1, c.geom2)
+                best = Nearest(
+                    self.model.geom(robot_geom).name,
+                    self.model.geom(env_geom).name,
+                    float(c.dist),
+                    away,
+                )
+        return best
 
     def collides(self, q_arm: ArrayLike) -> bool:
         """Whether the robot at ``q_arm`` (5,) is closer than the clearance to any obstacle."""

@@ -10,6 +10,7 @@ the block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-dow
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -27,6 +28,7 @@ from controllers.arm_path import (
 from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult, rotation_error
 from controllers.errors import ReachError
 from controllers.reach import seeded_postures
+from controllers.set_down_aim import MAX_AIM_OFFSET, DescentMiss, descent_miss
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -53,6 +55,8 @@ SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.
 #: SET_DOWN_TURNS gives a set-down, each is moved to the nearest turn the arm can hold a hand
 #: tilted more than this at, and those are tried.
 ALIGNED_TILT = 1e-3
+#: Set-downs aimed off the place point tried at most (controllers.set_down_aim).
+MAX_AIMED = 12
 #: Turns (rad) closer than this are the same turn.
 SAME_TURN = 1e-3
 #: Turns (over a full circle) sampled to bracket the reachable turns before Brent's method.
@@ -257,17 +261,41 @@ def plan_delivery(
     turns = [0.0, turn, *(turn + t for t in SET_DOWN_TURNS)]
     passes = (False, True) if nearer else (False,)
 
-    def candidates() -> Iterator[tuple[bool, float, NDArray[np.float64]]]:
-        yield from ((rise, t, seed) for rise in passes for t in turns)
+    # a lowered way down that passed something by less than SET_DOWN_CLEARANCE: the pair, the
+    # turn, the IK seed and how far that set-down was already aimed off the place point
+    misses: list[tuple[DescentMiss, float, NDArray[np.float64], NDArray[np.float64]]] = []
+    on_point = np.zeros(2)
+
+    def candidates() -> Iterator[
+        tuple[bool, float, NDArray[np.float64], NDArray[np.float64], DescentMiss | None]
+    ]:
+        yield from ((rise, t, seed, on_point, None) for rise in passes for t in turns)
         held = _held_turns(checker, q0, turns, b0, shift, base)
         seeds = [_turned_seed(checker, seed, t - turn, _rotate_z(t) @ R0) for t in held]
-        yield from ((rise, t, s) for rise in passes for t, s in zip(held, seeds, strict=True))
+        yield from (
+            (rise, t, s, on_point, None)
+            for rise in passes
+            for t, s in zip(held, seeds, strict=True)
+        )
+        # then each of those aimed off the place point, away from what it passed too near
+        # (controllers.set_down_aim), in the order they were found; a set-down aimed off that
+        # passes something else too near is aimed further, within MAX_AIM_OFFSET in all
+        for miss, t, s, aim in itertools.islice(_growing(misses), MAX_AIMED):
+            offset = miss.offset()
+            if offset is not None and np.linalg.norm(aim + offset) <= MAX_AIM_OFFSET:
+                yield True, t, s, aim + offset, miss
 
-    for rise, t, ik_seed in candidates():
+    for candidate in candidates():
+        rise, t, ik_seed, aim, cause = candidate
         R = _rotate_z(t) @ R0
-        # the palm moves so that the block's centre lands above the place point
-        p_high = b0 + shift + R @ R0.T @ (p0 - b0)
-        set_down = _set_down_path(checker, descent, p_high, drop, R, ik_seed, rise=rise)
+        # the palm moves so that the block's centre lands above the place point (or the point
+        # the set-down is aimed at)
+        p_high = b0 + shift + np.array([*aim, 0.0]) + R @ R0.T @ (p0 - b0)
+        found: list[DescentMiss] = []
+        set_down = _set_down_path(
+            checker, descent, p_high, drop, R, ik_seed, rise=rise, misses=found
+        )
+        misses.extend((miss, t, ik_seed, aim) for miss in found)
         if set_down is None:
             continue
         # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
@@ -289,10 +317,23 @@ def plan_delivery(
             "mm) from everything"
             + (f", from {risen * 100:.0f} cm above the carry height" if risen > 1e-6 else "")
         )
+    if cause is not None:
+        how.append(
+            f"aimed {np.linalg.norm(aim) * 1000:.1f} mm off the place point (lowered onto it, "
+            f"{cause.describe()})"
+        )
     extra = float(_wrap(t - turn))
     if abs(extra) > SAME_TURN and abs(_wrap(t)) > SAME_TURN:
         how.append(f"turned {np.degrees(extra):+.0f} deg about the place point beyond the waist")
     return DeliveryPlan(True, path, transit, block_goal, "reached goal", "; ".join(how))
+
+
+def _growing(items: list) -> Iterator:
+    """The items of ``items`` in order, including those appended while iterating."""
+    i = 0
+    while i < len(items):
+        yield items[i]
+        i += 1
 
 
 def _held_turns(
@@ -372,6 +413,7 @@ def _set_down_path(
     seed: NDArray[np.float64],
     *,
     rise: bool,
+    misses: list[DescentMiss] | None = None,
 ) -> NDArray[np.float64] | None:
     """Arm postures (k, 5) from the transit's goal down to the set-down's hover, with the palm
     at ``p_high`` (the carry height) and orientation ``R`` above the place point, or None.
@@ -380,7 +422,9 @@ def _set_down_path(
     set-down keeps that clearance until its last 2 * clearance (where the block nears the table)
     and ``descent``'s all the way. With ``rise`` the way down keeps only ``descent``'s
     clearance, and the posture at ``p_high`` may be within ``checker``'s of something: the
-    transit then ends above it, where the hand is clear (:func:`rise_until_clear`)."""
+    transit then ends above it, where the hand is clear (:func:`rise_until_clear`). A way down
+    that passes something nearer than ``descent``'s clearance appends the closest pair to
+    ``misses`` (:func:`controllers.set_down_aim.descent_miss`), when given."""
     clearance = checker.clearance
     h = set_down_ik(checker, p_high, R, seed)
     d = checker.solve_ik(p_high + drop, R, h.q)
@@ -399,6 +443,10 @@ def _set_down_path(
             return None
         return lowered
     if first_collision(descent, lowered) is not None:
+        if misses is not None:
+            miss = descent_miss(descent, lowered)
+            if miss is not None:
+                misses.append(miss)
         return None
     if not checker.collides(h.q):
         return lowered  # clear at the carry height, the way down only at SET_DOWN_CLEARANCE

@@ -104,3 +104,39 @@ def test_carried_block_moves_rigidly_with_the_palm(world):
         CollisionChecker(world, clearance=-0.1)
     with pytest.raises(ReachError, match="5 finite"):
         checker.collides([0.0, 0.0])
+
+
+def test_nearest_obstacle_agrees_with_mujocos_geom_distance(world):
+    """The closest robot-environment pair: its distance and the normal that moves the robot away
+    from it, against MuJoCo's own distance query between the two geoms (the segment between
+    their closest points). Near misses are found on the way from the clear home posture to
+    random ones."""
+    checker = CollisionChecker(world, clearance=0.03, hand_q=PRESHAPE)
+    home = world.arm_qpos()
+    assert checker.nearest_obstacle(home) is None and not checker.collides(home)
+    checked = 0
+    for q_far in random_postures(checker, N_POSTURES, 3):
+        for q in home + np.linspace(0.0, 1.0, 60)[:, None] * (q_far - home):
+            near = checker.nearest_obstacle(q)
+            pairs = checker.contacts(q)
+            if near is None:
+                # nothing within the clearance, or a pair of the robot's own links is
+                env = [checker.kind[checker.model.geom(c.geom1).id] == "env" for c in pairs]
+                env2 = [checker.kind[checker.model.geom(c.geom2).id] == "env" for c in pairs]
+                assert not pairs or any(a == b for a, b in zip(env, env2, strict=True))
+                continue
+            assert near.distance == pytest.approx(min(c.distance for c in pairs), abs=1e-12)
+            if near.distance < 2e-3:
+                break  # touching geoms' closest points give no direction
+            robot_id = checker.model.geom(near.robot_geom).id
+            env_id = checker.model.geom(near.env_geom).id
+            assert checker.kind[robot_id] != "env" and checker.kind[env_id] == "env"
+            fromto = np.zeros(6)
+            m, d = checker.model, checker.data
+            dist = mujoco.mj_geomDistance(m, d, env_id, robot_id, 0.1, fromto)
+            assert dist == pytest.approx(near.distance, abs=2e-4)
+            segment = fromto[3:] - fromto[:3]
+            np.testing.assert_allclose(near.away, segment / np.linalg.norm(segment), atol=0.05)
+            checked += 1
+            break  # the first near miss on the way
+    assert checked >= 8
