@@ -10,7 +10,6 @@ the block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-dow
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -280,7 +279,10 @@ def plan_delivery(
         # then each of those aimed off the place point, away from what it passed too near
         # (controllers.set_down_aim), in the order they were found; a set-down aimed off that
         # passes something else too near is aimed further, within MAX_AIM_OFFSET in all
-        for miss, t, s, aim in itertools.islice(_growing(misses), MAX_AIMED):
+        tried = 0
+        while tried < min(len(misses), MAX_AIMED):  # misses grows as aimed ones are tried
+            miss, t, s, aim = misses[tried]
+            tried += 1
             offset = miss.offset()
             if offset is not None and np.linalg.norm(aim + offset) <= MAX_AIM_OFFSET:
                 yield True, t, s, aim + offset, miss
@@ -319,21 +321,13 @@ def plan_delivery(
         )
     if cause is not None:
         how.append(
-            f"aimed {np.linalg.norm(aim) * 1000:.1f} mm off the place point (lowered onto it, "
-            f"{cause.describe()})"
+            f"aimed {np.linalg.norm(aim) * 1000:.1f} mm off the place point (a way down had "
+            f"passed {cause.describe()})"
         )
     extra = float(_wrap(t - turn))
     if abs(extra) > SAME_TURN and abs(_wrap(t)) > SAME_TURN:
         how.append(f"turned {np.degrees(extra):+.0f} deg about the place point beyond the waist")
     return DeliveryPlan(True, path, transit, block_goal, "reached goal", "; ".join(how))
-
-
-def _growing(items: list) -> Iterator:
-    """The items of ``items`` in order, including those appended while iterating."""
-    i = 0
-    while i < len(items):
-        yield items[i]
-        i += 1
 
 
 def _held_turns(

@@ -2,12 +2,11 @@
 clearance (issue 23).
 
 A carried block is lowered with every link of the hand :data:`SET_DOWN_CLEARANCE` from the
-blocks around it (:func:`controllers.delivery.plan_delivery`). Where the only set-down a
-lateral palm can hold passes a neighbour by a fraction of a millimetre less than that (a finger
-2.7 mm from it), the place point is not a wall: the task asks for the block within 2 cm of it
-(:data:`fsm.judge.PLACE_TOLERANCE`). The set-down is then aimed off the point, away from that
-neighbour along the horizontal part of the pair's contact normal, by the shortfall and
-:data:`AIM_MARGIN`, at most :data:`MAX_AIM_OFFSET` in all.
+blocks around it (:func:`controllers.delivery.plan_delivery`). Where the only set-downs the
+hand can hold pass a neighbour by a little less than that, the place point is not a wall: the
+task asks for the block within 2 cm of it (:data:`fsm.judge.PLACE_TOLERANCE`). The set-down is
+then aimed off the point, away from that neighbour along the horizontal part of the pair's
+contact normal, by the shortfall and :data:`AIM_MARGIN`, at most :data:`MAX_AIM_OFFSET` in all.
 """
 
 from __future__ import annotations
