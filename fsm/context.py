@@ -191,6 +191,11 @@ class Episode:
     #: (fsm.handlers.look_again): (Failure, reason) the episode fails with when Coarse Reach
     #: finds no further palm pose; None otherwise
     regrasp_failure: tuple[Any, str] | None = None
+    #: after a lateral grasp lost its block at the lift, with
+    #: ``config.lateral_retry_by_reserve``: that grasp's friction reserve (N, -inf where no
+    #: forces held the weight by the 3-D model); the next pre-shapes take only grasps above it
+    #: while any is left. None otherwise
+    retry_floor: float | None = None
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
     heights_searched: Any | None = None
@@ -231,6 +236,7 @@ class Episode:
         self.preshape_hand_q = None
         self.preshape_rolls = None
         self.regrasp_failure = None
+        self.retry_floor = None
         self.posture_mode = "hold"
         return self.record
 

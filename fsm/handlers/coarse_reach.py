@@ -44,7 +44,16 @@ def coarse_reach(ep: Episode) -> Step:
     preshape = ""
     if plan.approach == "lateral":
         # after the camera looked again (fsm.handlers.look_again), the next palm pose
-        done = lateral_preshape(ep, skip=ep.record.regrasps)
+        done = None
+        if ep.retry_floor is not None:  # a grasp that holds more than the one that slipped
+            floor = ep.retry_floor
+            done = lateral_preshape(ep, skip=0)
+            if done is None:
+                ep.retry_floor = None
+            else:
+                done += f"; its grasp's reserve above the {floor:.2f} N of the one that slipped"
+        if done is None:
+            done = lateral_preshape(ep, skip=ep.record.regrasps)
         if done is None and ep.regrasp_failure is not None:
             failure, reason = ep.regrasp_failure
             raise TaskFailedError(failure, f"{reason}; no other palm pose to regrasp from")

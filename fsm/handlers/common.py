@@ -266,6 +266,8 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
         done = _gated_preshapes(ep, skip, memo)
         if done is not None:
             return done
+    if ep.retry_floor is not None:
+        return None  # only sampled grasps are rated by their reserve
     pinch = _pinch_search(ep, skip)
     reached = pinch.found and pinch.reach is not None and pinch.reach.reachable
     if not reached and ep.config.lateral_contacts == "sampled":
@@ -369,6 +371,8 @@ def _sampled_poses(
         for pose, grasp in memo[rolls, three]
         if grasp is not None and band[0] < grasp.s_g <= band[1]
     ]
+    if ep.retry_floor is not None:
+        kept = [(p, g) for p, g in kept if grasp_reserve(ep, g) > ep.retry_floor]
     by_reserve = ep.config.lateral_reserve_order
     reserves: dict[int, float] = {}
     if by_reserve:

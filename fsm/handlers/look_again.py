@@ -116,4 +116,7 @@ def grasp_again_or_fail(ep: Episode, detail: str) -> Step:
     ):
         raise TaskFailedError(Failure.SLIPPED_DURING_LIFT, detail)
     record.lift_retries += 1
+    if config.lateral_retry_by_reserve:
+        reserve = record.squeeze_reserve
+        ep.retry_floor = -np.inf if reserve is None else reserve
     return look_again(ep, detail, Failure.SLIPPED_DURING_LIFT, label="slipped at the lift")

@@ -11,11 +11,15 @@ from fsm.context import EpisodeOptions
 from fsm.machine import EpisodeResult, run_episode
 
 #: The lateral squeeze before the holding forces (issue 23, twenty-third session): the balanced
-#: shares, the pre-shape search blind to the friction reserve. The episodes written to show a
-#: recovery (a slip at the lift, a squeeze that falls short, a retreat that drags) run with it:
-#: with the holding squeeze their first grasp is another, or holds, and the recovery never runs.
+#: shares, the pre-shape search blind to the friction reserve (the regrasp after a slip too).
+#: The episodes written to show a recovery (a slip at the lift, a squeeze that falls short, a
+#: retreat that drags) run with it: with the holding squeeze their first grasp is another, or
+#: holds, and the recovery never runs.
 BALANCED_SQUEEZE = replace(
-    DEFAULT_CONFIG, lateral_holding_forces=False, lateral_reserve_first=False
+    DEFAULT_CONFIG,
+    lateral_holding_forces=False,
+    lateral_reserve_first=False,
+    lateral_retry_by_reserve=False,
 )
 
 
