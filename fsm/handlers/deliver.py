@@ -91,8 +91,9 @@ def _lift_time(height: float) -> float:
     return LIFT_TIME * float(np.sqrt(height / LIFT_HEIGHT))
 
 
-def _hold_sensed(ep: Episode) -> str:
-    """Empty when the lifted hand holds its block (:func:`lift_held`); else what it senses."""
+def _hold_lost(ep: Episode) -> str:
+    """What the lifted hand senses when it does not hold its block (:func:`lift_held`); empty
+    when it holds it."""
     world = ep.world
     load = held_load(world, ep.empty_hand_force)
     touch = world.touch()
@@ -133,8 +134,8 @@ def deliver(ep: Episode) -> Step:
     tried = LiftResult(0.0, 0.0)
     if trial > 0.0:
         tried = lift(world, checker, name, ep.grip, height=trial, duration=_lift_time(trial))
-        held = _hold_sensed(ep)
-        if held:
+        lost = _hold_lost(ep)
+        if lost:
             # lowered back onto the table, still standing where it was modelled, and grasped again
             move_palm(
                 world,
@@ -143,7 +144,7 @@ def deliver(ep: Episode) -> Step:
                 _lift_time(trial),
                 grip=ep.grip,
             )
-            return grasp_again_or_fail(ep, f"at a {trial * 100:.0f} cm trial lift {held}")
+            return grasp_again_or_fail(ep, f"at a {trial * 100:.0f} cm trial lift {lost}")
         log(
             State.DELIVER.value,
             State.DELIVER.value,
@@ -154,9 +155,9 @@ def deliver(ep: Episode) -> Step:
     record.lift_height = float(tried.block_rise + lifted.block_rise)
     record.lift_slip = float(tried.slip + lifted.slip)
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
-    held = _hold_sensed(ep)
-    if held:
-        return grasp_again_or_fail(ep, held)
+    lost = _hold_lost(ep)
+    if lost:
+        return grasp_again_or_fail(ep, lost)
     log(
         State.DELIVER.value,
         State.DELIVER.value,

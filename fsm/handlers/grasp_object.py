@@ -110,6 +110,7 @@ def _lateral_squeeze(ep: Episode, planar: np.ndarray) -> tuple[np.ndarray, float
         holding=ep.config.lateral_holding_forces,
     )
     if squeeze.reserve is None:
+        ep.record.squeeze_reserve = None  # this grasp's, not an earlier one's
         return squeeze.forces, squeeze.grip_force, "; no forces hold the weight by the 3-D model"
     ep.record.squeeze_reserve = round(squeeze.reserve, 3)
     return squeeze.forces, squeeze.grip_force, f"; friction reserve {squeeze.reserve:.2f} N"
