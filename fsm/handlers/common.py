@@ -371,14 +371,16 @@ def _sampled_poses(
         for pose, grasp in memo[rolls, three]
         if grasp is not None and band[0] < grasp.s_g <= band[1]
     ]
-    if ep.retry_floor is not None:
-        kept = [(p, g) for p, g in kept if grasp_reserve(ep, g) > ep.retry_floor]
     by_reserve = ep.config.lateral_reserve_order
-    reserves: dict[int, float] = {}
+    first = ep.config.lateral_reserve_first and not by_reserve
+    reserves: dict[int, float] = {}  # each grasp's friction reserve, solved once
+    if by_reserve or first or ep.retry_floor is not None:
+        reserves = {id(grasp): grasp_reserve(ep, grasp) for _, grasp in kept}
+    if ep.retry_floor is not None:
+        kept = [(p, g) for p, g in kept if reserves[id(g)] > ep.retry_floor]
     if by_reserve:
         # the most friction to spare first, each pose a group of its own (search_poses takes
         # the groups in order)
-        reserves = {id(grasp): grasp_reserve(ep, grasp) for _, grasp in kept}
         kept.sort(key=lambda pg: -reserves[id(pg[1])])
     poses: list[PalmPose] = []
     for rank, (pose, grasp) in enumerate(kept):
@@ -393,9 +395,9 @@ def _sampled_poses(
         shaped = PalmPose(qpos, group + group_offset, label)
         grasps[id(shaped)] = grasp
         poses.append(shaped)
-    if ep.config.lateral_reserve_first and not by_reserve:
+    if first:
         # the grasps the 3-D model says hold the weight first, each part in its order
-        poses.sort(key=lambda p: grasp_reserve(ep, grasps[id(p)]) < 0.0)  # key once per pose
+        poses.sort(key=lambda p: reserves[id(grasps[id(p)])] < 0.0)
     return poses
 
 
