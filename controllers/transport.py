@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -105,10 +105,14 @@ def move_palm(
 
 @dataclass(frozen=True)
 class LiftResult:
-    """Rise (m) of the palm and of the block during :func:`lift`, and their difference."""
+    """Rise (m) of the palm and of the block during :func:`lift`, and their difference; how far
+    (m) each fingertip moved in the palm's frame (4,), ff, mf, rf, th: sensed, by the hand's
+    kinematics (a held block keeps the pads where they pressed; one that turns or slides in the
+    hand carries them along as the fingers keep pressing)."""
 
     palm_rise: float
     block_rise: float
+    tip_motion: NDArray[np.float64] = field(default_factory=lambda: np.zeros(4))
 
     @property
     def slip(self) -> float:
@@ -130,13 +134,24 @@ def lift(
     if not 0.0 < height < 0.5:
         raise ReachError(f"lift height must lie in (0, 0.5) m, got {height}")
     b0 = world.block_pose(block)[0][2]
-    p0 = checker.palm_pose(world.arm_qpos())[0][2]
+    tips0, p0 = _tips_in_palm(world, checker)
     move_palm(world, checker, [0.0, 0.0, height], duration, grip=grip)
     _hold(world, grip, DELIVER_SETTLE_TIME)
+    tips1, p1 = _tips_in_palm(world, checker)
     return LiftResult(
-        palm_rise=checker.palm_pose(world.arm_qpos())[0][2] - p0,
+        palm_rise=float(p1[2] - p0[2]),
         block_rise=world.block_pose(block)[0][2] - b0,
+        tip_motion=np.linalg.norm(tips1 - tips0, axis=1),
     )
+
+
+def _tips_in_palm(
+    world: World, checker: CollisionChecker
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The fingertips (4, 3) in the palm's frame, and the palm's position (3,), by the arm's and
+    the hand's kinematics."""
+    p, R = checker.palm_pose(world.arm_qpos())
+    return (world.fingertip_positions() - p) @ R, p
 
 
 def carry(

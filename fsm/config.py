@@ -156,6 +156,16 @@ class TaskConfig:
     #: 0-99: 86 / 100 against 85; 100-149: 38 / 50 against 38; 150-199: 41 / 50 against 40.
     #: Measured in docs/task_cycle.md, "The regrasp after a slip keeps more reserve".
     lateral_retry_by_reserve: bool = True
+    #: Lateral grasps: a block that the hand still holds at the top of the lift, but whose
+    #: pressing fingertips moved more than this (m) in the palm's frame as it rose (it turned or
+    #: slid in the hand: sensed by the hand's kinematics), is lowered back onto the table and
+    #: grasped again (``lift_retries``), instead of being carried tilted and set down on an
+    #: edge; with no lift retry left it is carried as held. 0 turns it off. 2 mm, chosen after
+    #: looking at ten episodes' fingertips (0.1-0.7 mm where the block was delivered, 2.6-4.2
+    #: mm where it turned or slipped). Random seeds 0-99: 87 / 100 against 86 with 0; 100-149:
+    #: 38 / 50 against 38; 150-199: 42 / 50 against 41. Measured in docs/task_cycle.md, "A block
+    #: that turns in the hand at the lift".
+    lateral_tip_motion_limit: float = 0.002
     regrasp_rolls: tuple[float, ...] = (np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
     #: The held load must be at least this share of the perceived block's weight after the lift,
     #: and during the carry (wrist sensor), else the block slipped / was dropped.
@@ -202,6 +212,14 @@ class TaskConfig:
         if not (np.isfinite(self.lateral_trial_lift) and 0.0 <= self.lateral_trial_lift < 0.05):
             raise ValueError(
                 f"lateral_trial_lift must lie in [0, 0.05) m; got {self.lateral_trial_lift!r}"
+            )
+        if not (
+            np.isfinite(self.lateral_tip_motion_limit)
+            and 0.0 <= self.lateral_tip_motion_limit < 0.02
+        ):
+            raise ValueError(
+                "lateral_tip_motion_limit must lie in [0, 0.02) m (0: off); "
+                f"got {self.lateral_tip_motion_limit!r}"
             )
         if not (np.isfinite(self.lateral_gate) and self.lateral_gate > 0.0):
             raise ValueError(

@@ -116,6 +116,10 @@ class CycleRecord:
     squeeze_reserve: float | None = None
     lift_height: float | None = None  #: m, block rise during the lift
     lift_slip: float | None = None  #: m, palm rise minus block rise
+    #: mm each fingertip (ff, mf, rf, th) moved in the palm's frame during the lift (sensed)
+    lift_tip_motion_mm: list[float] | None = None
+    #: deg, the block's tilt at the top of the lift, for judging only (not sensed)
+    lift_tilt_deg: float | None = None
     lift_clearance: float = 0.0  #: m, highest block bottom above the table while carried
     #: how Deliver's plan lowers the block: "" keeping the planning clearance with the hand as
     #: it holds it, else how it does (controllers.delivery: nearer its neighbours, from above

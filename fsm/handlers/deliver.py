@@ -25,10 +25,11 @@ from controllers.transport import (
 from fsm.config import TaskConfig
 from fsm.context import CycleRecord, Episode
 from fsm.handlers.common import slides, top_to_clear
-from fsm.handlers.look_again import grasp_again_or_fail, park_arm
-from fsm.judge import judge
+from fsm.handlers.look_again import grasp_again_or_fail, lift_retry_left, park_arm
+from fsm.judge import judge, tilt_degrees
 from fsm.layout import free_slot
 from fsm.states import Failure, State, Step, TaskFailedError
+from hand_sim import robot
 
 
 def _elsewhere_note(record: CycleRecord) -> str:
@@ -107,6 +108,36 @@ def _hold_lost(ep: Episode) -> str:
     )
 
 
+def _turned_in_hand(ep: Episode, tip_motion: np.ndarray) -> str:
+    """Why a lateral grasp's block counts as turned or slid in the hand at the lift: a pressing
+    fingertip moved more than ``config.lateral_tip_motion_limit`` in the palm's frame
+    (``tip_motion`` (4,), m); empty when none did, for a top grasp, or with the limit 0."""
+    limit = ep.config.lateral_tip_motion_limit
+    if not slides(ep) or limit <= 0.0:
+        return ""
+    moved = np.zeros(len(tip_motion))
+    pressing = ep.contacts.pressing  # a three-contact grasp's idle finger is held clear
+    moved[pressing] = tip_motion[pressing]
+    worst = int(np.argmax(moved))
+    if moved[worst] <= limit:
+        return ""
+    return (
+        "the block turned or slid in the hand as it rose: "
+        f"{robot.FINGERS[worst]}'s fingertip moved {moved[worst] * 1000:.1f} mm in the palm's "
+        f"frame (more than {limit * 1000:.1f} mm)"
+    )
+
+
+def _lower_back(ep: Episode, checker: CollisionChecker, lifted: LiftResult) -> str:
+    """Lower a block still held after its lift back onto the table: the palm straight down by
+    its rise, to where it grasped the block standing, so that the table turns a block that
+    turned in the hand back onto its base before the hand lets go (stopped where the wrist
+    first feels the table, a block tilted 10 deg was let go on its edge and fell over, random
+    127); returns what was done, for the log."""
+    move_palm(ep.world, checker, [0.0, 0.0, -lifted.palm_rise], LIFT_TIME, grip=ep.grip)
+    return f"the palm lowered back {lifted.palm_rise * 100:.1f} cm to where it grasped the block"
+
+
 class _DroppedError(Exception):
     """Fewer than two pads have felt the carried block for ``drop_window`` periods."""
 
@@ -155,13 +186,21 @@ def deliver(ep: Episode) -> Step:
     record.lift_height = float(tried.block_rise + lifted.block_rise)
     record.lift_slip = float(tried.slip + lifted.slip)
     record.lift_clearance = max(record.lift_clearance, clearance_now(world))
+    record.lift_tip_motion_mm = (lifted.tip_motion * 1000.0).round(2).tolist()
+    record.lift_tilt_deg = round(tilt_degrees(world.block_pose(name)[1]), 2)  # judging only
     lost = _hold_lost(ep)
     if lost:
         return grasp_again_or_fail(ep, lost)
+    turned = _turned_in_hand(ep, lifted.tip_motion)
+    if turned and lift_retry_left(ep):
+        # still held: set down where it was lifted from, then let go and grasp it again
+        return grasp_again_or_fail(ep, f"{turned}; {_lower_back(ep, checker, lifted)}")
+    # the last lift retry spent, a block still held is carried as it is held
+    carried = f" ({turned}; no lift retry left: carried as held)" if turned else ""
     log(
         State.DELIVER.value,
         State.DELIVER.value,
-        f"lifted: block rose {record.lift_height * 100:.1f} cm",
+        f"lifted: block rose {record.lift_height * 100:.1f} cm{carried}",
     )
     # the hand may set the block down nearer its neighbours at a point the user or the scene
     # asked for; a slot the task cycle chose itself gives way to the next free one instead

@@ -103,20 +103,26 @@ def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp
     )
 
 
+def lift_retry_left(ep: Episode) -> bool:
+    """Whether a lateral grasp that failed its lift may be taken again: fewer than
+    ``config.lift_retries`` such retries and ``config.max_regrasps`` regrasps so far."""
+    record, config = ep.record, ep.config
+    return (
+        slides(ep)
+        and record.lift_retries < config.lift_retries
+        and record.regrasps < config.max_regrasps
+    )
+
+
 def grasp_again_or_fail(ep: Episode, detail: str) -> Step:
     """After a lateral grasp's block slipped at the lift (``detail``: what the hand sensed),
     :func:`look_again`; fails with Failure.SLIPPED_DURING_LIFT for a top grasp, after
     ``config.lift_retries`` such retries or ``config.max_regrasps`` regrasps."""
     record = ep.record
-    config = ep.config
-    if (
-        not slides(ep)
-        or record.lift_retries >= config.lift_retries
-        or record.regrasps >= config.max_regrasps
-    ):
+    if not lift_retry_left(ep):
         raise TaskFailedError(Failure.SLIPPED_DURING_LIFT, detail)
     record.lift_retries += 1
-    if config.lateral_retry_by_reserve:
+    if ep.config.lateral_retry_by_reserve:
         reserve = record.squeeze_reserve
         ep.retry_floor = -np.inf if reserve is None else reserve
     return look_again(ep, detail, Failure.SLIPPED_DURING_LIFT, label="slipped at the lift")
