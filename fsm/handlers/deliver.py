@@ -128,14 +128,14 @@ def _turned_in_hand(ep: Episode, tip_motion: np.ndarray) -> str:
     )
 
 
-def _lower_back(ep: Episode, checker: CollisionChecker, lifted: LiftResult) -> str:
+def _lower_back(ep: Episode, checker: CollisionChecker, rise: float, duration: float) -> str:
     """Lower a block still held after its lift back onto the table: the palm straight down by
-    its rise, to where it grasped the block standing, so that the table turns a block that
-    turned in the hand back onto its base before the hand lets go (stopped where the wrist
-    first feels the table, a block tilted 10 deg was let go on its edge and fell over, random
-    127); returns what was done, for the log."""
-    move_palm(ep.world, checker, [0.0, 0.0, -lifted.palm_rise], LIFT_TIME, grip=ep.grip)
-    return f"the palm lowered back {lifted.palm_rise * 100:.1f} cm to where it grasped the block"
+    its ``rise`` (m) in ``duration`` (s), to where it grasped the block standing, so that the
+    table turns a block that turned in the hand back onto its base before the hand lets go
+    (stopped where the wrist first feels the table, a block tilted 10 deg was let go on its edge
+    and fell over, random 127); returns what was done, for the log."""
+    move_palm(ep.world, checker, [0.0, 0.0, -rise], duration, grip=ep.grip)
+    return f"the palm lowered back {rise * 100:.1f} cm to where it grasped the block"
 
 
 class _DroppedError(Exception):
@@ -168,13 +168,7 @@ def deliver(ep: Episode) -> Step:
         lost = _hold_lost(ep)
         if lost:
             # lowered back onto the table, still standing where it was modelled, and grasped again
-            move_palm(
-                world,
-                checker,
-                [0.0, 0.0, -tried.palm_rise],
-                _lift_time(trial),
-                grip=ep.grip,
-            )
+            _lower_back(ep, checker, tried.palm_rise, _lift_time(trial))
             return grasp_again_or_fail(ep, f"at a {trial * 100:.0f} cm trial lift {lost}")
         log(
             State.DELIVER.value,
@@ -194,7 +188,8 @@ def deliver(ep: Episode) -> Step:
     turned = _turned_in_hand(ep, lifted.tip_motion)
     if turned and lift_retry_left(ep):
         # still held: set down where it was lifted from, then let go and grasp it again
-        return grasp_again_or_fail(ep, f"{turned}; {_lower_back(ep, checker, lifted)}")
+        lowered = _lower_back(ep, checker, lifted.palm_rise, LIFT_TIME)
+        return grasp_again_or_fail(ep, f"{turned}; {lowered}")
     # the last lift retry spent, a block still held is carried as it is held
     carried = f" ({turned}; no lift retry left: carried as held)" if turned else ""
     log(
