@@ -106,7 +106,9 @@ class CollisionChecker:
     hand: it then moves rigidly with the palm (its pose relative to the palm as in ``world``
     now) and counts as part of the hand (delivery: "navigate the hand/arm/object"). ``model`` is
     the model to copy instead of the world's (same state layout), e.g. a
-    :func:`controllers.planning_model.planning_model` holding the perceived target.
+    :func:`controllers.planning_model.planning_model` holding the perceived target. ``qpos`` is
+    the configuration to copy instead of the world's now (a posture the arm is not in yet, e.g.
+    a grasp whose set-down is checked before it is taken).
     """
 
     def __init__(
@@ -117,6 +119,7 @@ class CollisionChecker:
         hand_q: ArrayLike | None = None,
         carried: str | None = None,
         model: mujoco.MjModel | None = None,
+        qpos: ArrayLike | None = None,
     ) -> None:
         if not world.with_robot:
             raise ReachError("the world was built with with_robot=False: nothing to plan for")
@@ -129,7 +132,10 @@ class CollisionChecker:
             )
         self.model = copy.deepcopy(world.model if model is None else model)
         self.data = mujoco.MjData(self.model)
-        self.data.qpos[:] = world.data.qpos
+        state = world.data.qpos if qpos is None else np.asarray(qpos, dtype=float)
+        if state.shape != world.data.qpos.shape or not np.all(np.isfinite(state)):
+            raise ReachError(f"qpos must be {world.model.nq} finite numbers")
+        self.data.qpos[:] = state
         try:
             idx = RobotIndices.of(self.model)
         except SimulationError as e:

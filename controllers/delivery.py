@@ -181,6 +181,8 @@ def plan_delivery(
     hover: float = SET_DOWN_HOVER,
     clearance: float = DEFAULT_CLEARANCE,
     nearer: bool = True,
+    qpos: ArrayLike | None = None,
+    with_transit: bool = True,
 ) -> DeliveryPlan:
     """Plan to carry ``block`` (held by the hand now, on the table or already lifted) to
     ``place_xy`` on the table (section 5.2, "Deliver": "the path is computed by the same harmonic
@@ -194,7 +196,11 @@ def plan_delivery(
     set-down) the block-table pair is exempt.
 
     ``nearer``: when no turn keeps ``clearance``, try them again lowered at
-    :data:`SET_DOWN_CLEARANCE` (:func:`_set_down_path`); off, such a place point fails."""
+    :data:`SET_DOWN_CLEARANCE` (:func:`_set_down_path`); off, such a place point fails.
+    ``qpos``: the configuration the plan starts from, the block held as it is there (default
+    the world's now). Without ``with_transit`` only the lift and the set-down are planned, not
+    the harmonic transit between them (whether a grasp can set its block down at all); the
+    plan's path is then the lift followed by the set-down, a check's, not one to follow."""
     place = np.asarray(place_xy, dtype=float)
     if place.shape != (2,) or not np.all(np.isfinite(place)):
         raise ReachError(f"place point must be a finite (x, y), got {place_xy!r}")
@@ -205,14 +211,16 @@ def plan_delivery(
     height = world.scene.block(block).height if block_height is None else float(block_height)
     if not (np.isfinite(height) and height > 0):
         raise ReachError(f"block height must be a positive number of metres, got {block_height}")
-    checker = CollisionChecker(world, clearance=clearance, hand_q=world.hand_qpos(), carried=block)
+    state = np.array(world.data.qpos if qpos is None else qpos, dtype=float)
+    hand_q = state[robot.hand_qpos_addresses(world.model)]
+    checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q, carried=block, qpos=state)
     # the set-down's last 2 * clearance is exempt above (the block nears the table); the hand's
     # links must still keep SET_DOWN_CLEARANCE from everything else all the way down (a finger's
     # middle link landed on a block delivered before, clutter5's third cycle)
     descent = CollisionChecker(
-        world, clearance=SET_DOWN_CLEARANCE, hand_q=world.hand_qpos(), carried=block
+        world, clearance=SET_DOWN_CLEARANCE, hand_q=hand_q, carried=block, qpos=state
     )
-    q0 = world.arm_qpos()
+    q0 = state[robot.arm_qpos_addresses(world.model)]
     empty = np.stack([q0])
 
     def fail(reason: str, transit: ArmPath | None = None) -> DeliveryPlan:
@@ -300,6 +308,8 @@ def plan_delivery(
         misses.extend((miss, t, ik_seed, aim) for miss in found)
         if set_down is None:
             continue
+        if not with_transit:
+            break
         # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
         # a tall neighbour at the start) gives way to the next one
         transit = plan_arm_path(checker, start, set_down[0], resolution=resolution)
@@ -309,7 +319,10 @@ def plan_delivery(
     else:
         return first_failure or fail("no collision-free posture above the place point")
     down = set_down[-1]
-    path = dedupe_path(np.vstack([*lead[:-1], transit.path, set_down[1:]]))
+    if with_transit:
+        path = dedupe_path(np.vstack([*lead[:-1], transit.path, set_down[1:]]))
+    else:
+        transit, path = None, dedupe_path(np.vstack([*lead, set_down]))
     block_goal, _ = checker.carried_pose(down)
     how = []
     if rise:

@@ -120,19 +120,23 @@ DEFAULT_PALM_POSE = PalmPoseParams()
 class PoseSetting:
     """Where palm poses are sought: the world as it is now, the planning model (the perceived
     block in place of the simulated one), the perceived target, and the palm rotation at the
-    coarse reach's goal (``coarse_rotation``, 3x3)."""
+    coarse reach's goal (``coarse_rotation``, 3x3); ``arm_q``, the arm joints the poses' IK
+    starts from (default the arm's present ones; e.g. the coarse goal's, before the arm is
+    there)."""
 
     world: World
     planning: mujoco.MjModel
     target: ReachTarget
     coarse_rotation: NDArray[np.float64]
+    arm_q: NDArray[np.float64] | None = None
 
     def arm_start(self) -> tuple[NDArray[np.int64], CollisionChecker, NDArray[np.float64]]:
-        """The arm's qpos addresses, a collision checker on the planning model, and the arm's
-        present joint angles (the IK's start)."""
+        """The arm's qpos addresses, a collision checker on the planning model, and the joint
+        angles the IK starts from (``arm_q``, else the arm's present ones)."""
         arm_adr = robot.arm_qpos_addresses(self.world.model)
         checker = CollisionChecker(self.world, model=self.planning)
-        return arm_adr, checker, self.world.data.qpos[arm_adr].copy()
+        start = self.world.data.qpos[arm_adr] if self.arm_q is None else self.arm_q
+        return arm_adr, checker, np.array(start, dtype=float)
 
 
 @dataclass(frozen=True, eq=False)

@@ -266,11 +266,16 @@ def lateral_frame(
 
 
 def lateral_fallback_poses(
-    target: ReachTarget, base_xy: ArrayLike
+    target: ReachTarget, base_xy: ArrayLike, tilt: float | None = None
 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
-    """The lateral goals of :data:`LATERAL_GOAL_FALLBACKS`, in their order."""
+    """The lateral goals of :data:`LATERAL_GOAL_FALLBACKS`, in their order (only those pitched
+    ``tilt`` down, rad, when given)."""
     radial = _radial(target, base_xy)
-    return [lateral_pose(target, radial, d, g, t) for d, g, t in LATERAL_GOAL_FALLBACKS]
+    return [
+        lateral_pose(target, radial, d, g, t)
+        for d, g, t in LATERAL_GOAL_FALLBACKS
+        if tilt is None or abs(t - tilt) < 1e-9
+    ]
 
 
 #: Seeds of the arm IK (waist is set towards the target): elbow-up reaching postures.
@@ -329,12 +334,15 @@ def plan_coarse_reach(
     approaches: tuple[str, ...] = APPROACHES,
     clearance: float = DEFAULT_CLEARANCE,
     model: mujoco.MjModel | None = None,
+    lateral_tilt: float | None = None,
 ) -> CoarseReachPlan:
     """Plan the coarse reach to ``target`` from the world's current arm posture, holding the hand
     at ``hand_q``: every approach is planned and the shortest existing path wins (a lateral goal
     only pitched down, :data:`LATERAL_TILTS`, only where no top path exists). ``model`` is
     the model collisions are checked in (default the world's; the task cycle passes the
-    planning model holding the perceived target, :mod:`controllers.planning_model`)."""
+    planning model holding the perceived target, :mod:`controllers.planning_model`).
+    ``lateral_tilt``: the lateral goals are only those of :data:`LATERAL_GOAL_FALLBACKS`
+    pitched this far down (rad), e.g. one of :data:`LATERAL_TILTS`."""
     unknown = [a for a in approaches if a not in APPROACHES]
     if unknown or not approaches:
         raise ReachError(
@@ -349,12 +357,13 @@ def plan_coarse_reach(
     candidates: dict[str, ArmPath] = {}
     goals: dict[str, ApproachGoal] = {}
     for approach in approaches:
-        goal = solve_goal(checker, approach, poses[approach], q_start)
+        pitched_only = approach == "lateral" and lateral_tilt is not None
+        goal = None if pitched_only else solve_goal(checker, approach, poses[approach], q_start)
         if goal is None and approach == "lateral":
             # the first fallback with a collision-free posture (nearer or higher palm)
             fallbacks = (
                 solve_goal(checker, approach, [pose], q_start)
-                for pose in lateral_fallback_poses(target, base_xy)
+                for pose in lateral_fallback_poses(target, base_xy, lateral_tilt)
             )
             goal = next((g for g in fallbacks if g is not None), None)
         if goal is None:

@@ -11,6 +11,7 @@ from controllers.cspace import CollisionChecker
 from controllers.reach import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
 from fsm.context import Episode
 from fsm.handlers.common import lateral_preshape, rise_clear
+from fsm.handlers.set_down_pitch import pitch_for_set_down
 from fsm.states import Failure, State, Step, TaskFailedError
 
 
@@ -30,6 +31,9 @@ def coarse_reach(ep: Episode) -> Step:
             plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     if not plan.found:
         raise TaskFailedError(Failure.NO_COARSE_PATH, plan.reason)
+    for_set_down = ""
+    if plan.approach == "lateral" and ep.config.lateral_set_down_pitch and ep.place is not None:
+        plan, for_set_down = pitch_for_set_down(ep, plan)
     ep.coarse = plan
     ep.record.approach = plan.approach
     pitch = math.degrees(plan.goal.pitch)
@@ -60,7 +64,8 @@ def coarse_reach(ep: Episode) -> Step:
         preshape = "; " + (done or "no pre-shape (none is approached without collision)")
     return Step(
         State.FINE_REACH,
-        f"{plan.approach} approach{pitched}: {plan.choice}{risen}; touched {touched} on the "
+        f"{plan.approach} approach{pitched}: {plan.choice}{for_set_down}{risen}; touched "
+        f"{touched} on the "
         f"way{preshape}",
     )
 
