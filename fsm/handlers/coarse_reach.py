@@ -65,8 +65,7 @@ def coarse_reach(ep: Episode) -> Step:
     return Step(
         State.FINE_REACH,
         f"{plan.approach} approach{pitched}: {plan.choice}{for_set_down}{risen}; touched "
-        f"{touched} on the "
-        f"way{preshape}",
+        f"{touched} on the way{preshape}",
     )
 
 

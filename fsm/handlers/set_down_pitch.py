@@ -3,7 +3,7 @@ grasp; here the delivery's path too): before Coarse Reach commits to a lateral g
 whether a hand holding the block as that goal would can set it down at the place point
 (:func:`controllers.delivery.plan_delivery` from the grasp's palm pose, without the transit).
 A level hand sets its block down with its wrist and forearm low along the radial line, where a
-neighbour standing 10-25 cm inward of the place point is in their way; pitched down
+neighbour standing up to 25 cm inward of the place point is in their way; pitched down
 (:data:`controllers.reach.LATERAL_TILTS`) the forearm passes above it. Where the goal's hand has
 no set-down, the pitched goals are tried in order and the first whose hand has one is taken."""
 
