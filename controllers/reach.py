@@ -325,6 +325,40 @@ def seeded_postures(
                 yield r
 
 
+def _base_xy(world: World) -> NDArray[np.float64]:
+    """World (x, y) of the arm's waist axis."""
+    body = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
+    return world.data.xpos[body][:2]
+
+
+def _first_goal(
+    checker: CollisionChecker,
+    poses: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    q_start: NDArray[np.float64],
+) -> ApproachGoal | None:
+    """The lateral goal of the first of ``poses`` with a collision-free posture
+    (:func:`solve_goal`), or None."""
+    goals = (solve_goal(checker, "lateral", [pose], q_start) for pose in poses)
+    return next((g for g in goals if g is not None), None)
+
+
+def pitched_lateral_goal(
+    world: World,
+    target: ReachTarget,
+    tilt: float,
+    *,
+    hand_q: ArrayLike = PRESHAPE,
+    clearance: float = DEFAULT_CLEARANCE,
+    model: mujoco.MjModel | None = None,
+) -> ApproachGoal | None:
+    """The lateral goal :func:`plan_coarse_reach` with ``lateral_tilt=tilt`` plans its path to
+    (the same checker, the same start), without planning the path: the first of
+    :data:`LATERAL_GOAL_FALLBACKS` pitched ``tilt`` (rad) down with a collision-free posture."""
+    checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q, model=model)
+    poses = lateral_fallback_poses(target, _base_xy(world), tilt)
+    return _first_goal(checker, poses, world.arm_qpos())
+
+
 def plan_coarse_reach(
     world: World,
     target: ReachTarget,
@@ -350,9 +384,7 @@ def plan_coarse_reach(
         )
     checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q, model=model)
     q_start = world.arm_qpos()
-    base_xy = world.data.xpos[
-        mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, robot.arm_name("arm_base"))
-    ][:2]
+    base_xy = _base_xy(world)
     poses = goal_poses(target, base_xy)
     candidates: dict[str, ArmPath] = {}
     goals: dict[str, ApproachGoal] = {}
@@ -361,11 +393,9 @@ def plan_coarse_reach(
         goal = None if pitched_only else solve_goal(checker, approach, poses[approach], q_start)
         if goal is None and approach == "lateral":
             # the first fallback with a collision-free posture (nearer or higher palm)
-            fallbacks = (
-                solve_goal(checker, approach, [pose], q_start)
-                for pose in lateral_fallback_poses(target, base_xy, lateral_tilt)
+            goal = _first_goal(
+                checker, lateral_fallback_poses(target, base_xy, lateral_tilt), q_start
             )
-            goal = next((g for g in fallbacks if g is not None), None)
         if goal is None:
             continue
         goals[approach] = goal

@@ -19,6 +19,7 @@ from controllers.reach import (
     PITCH_TOLERANCE,
     ApproachGoal,
     CoarseReachPlan,
+    pitched_lateral_goal,
     plan_coarse_reach,
 )
 from fsm.context import Episode
@@ -64,10 +65,14 @@ def pitch_for_set_down(ep: Episode, plan: CoarseReachPlan) -> tuple[CoarseReachP
     for tilt in LATERAL_TILTS:
         if tilt <= plan.goal.pitch + PITCH_TOLERANCE:
             continue
+        # the goal's hand checked first: a path is planned only to a goal that can set down
+        goal = pitched_lateral_goal(ep.world, ep.target, tilt, model=ep.planning)
+        if goal is None or not goal_sets_down(ep, goal):
+            continue
         pitched = plan_coarse_reach(
             ep.world, ep.target, approaches=("lateral",), model=ep.planning, lateral_tilt=tilt
         )
-        if pitched.found and pitched.goal is not None and goal_sets_down(ep, pitched.goal):
+        if pitched.found:
             why = (
                 f"; pitched {math.degrees(tilt):.0f} deg down: a hand pitched {pitch:.0f} deg "
                 "could not set the block down at the place point"
