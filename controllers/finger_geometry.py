@@ -38,25 +38,44 @@ class PerceivedPrism:
         return 0.5 * (self.bottom + self.top)
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Exact signed distance (m) of points (..., 3) to the prism; negative inside."""
+        """Exact signed distance (m) of points (..., 3) to the prism; negative inside. In the
+        plane, the distance to the nearest footprint edge (each point projected onto each edge,
+        x and y kept apart so that no (..., k, 2) arrays are built; the root taken once, of the
+        nearest), negative inside every edge's half-plane (the footprint is convex, CCW)."""
         p = np.asarray(points, dtype=float)
-        xy = p[..., :2]
+        x, y = p[..., 0, None], p[..., 1, None]  # (..., 1) against the k edges
         a = self.footprint
-        b = np.roll(a, -1, axis=0)
-        ab = b - a
-        t = np.clip(
-            np.einsum("...kd,kd->...k", xy[..., None, :] - a, ab) / np.einsum("kd,kd->k", ab, ab),
-            0.0,
-            1.0,
-        )
-        closest = a + t[..., None] * ab
-        edge_dist = np.linalg.norm(xy[..., None, :] - closest, axis=-1).min(axis=-1)
-        cross = ab[:, 0] * (xy[..., None, 1] - a[:, 1]) - ab[:, 1] * (xy[..., None, 0] - a[:, 0])
-        inside_xy = np.all(cross >= 0.0, axis=-1)
+        ab = np.roll(a, -1, axis=0) - a
+        ax, ay, abx, aby = a[:, 0], a[:, 1], ab[:, 0], ab[:, 1]
+        rx, ry = x - ax, y - ay
+        t = np.clip((rx * abx + ry * aby) / (abx * abx + aby * aby), 0.0, 1.0)
+        dx, dy = x - (ax + t * abx), y - (ay + t * aby)
+        edge_dist = np.sqrt((dx * dx + dy * dy).min(axis=-1))
+        inside_xy = np.all(abx * ry - aby * rx >= 0.0, axis=-1)
         d_xy = np.where(inside_xy, -edge_dist, edge_dist)
         d_z = np.maximum(self.bottom - p[..., 2], p[..., 2] - self.top)
         outside = np.hypot(np.maximum(d_xy, 0.0), np.maximum(d_z, 0.0))
         return np.where((d_xy > 0) | (d_z > 0), outside, np.maximum(d_xy, d_z))
+
+    def signed_distance_near(self, points: ArrayLike, within: float) -> NDArray[np.float64]:
+        """:meth:`signed_distance` of the points (..., 3) that may lie less than ``within`` (m)
+        from the prism; +inf for the rest, which lie further out than ``within`` (outside the
+        circle about the footprint's vertex mean that holds it, grown by ``within``, or above
+        or below it by more): a search that asks only whether points are within ``within``
+        measures only those that may be."""
+        p = np.asarray(points, dtype=float)
+        margin = max(float(within), 0.0)
+        hub = self.footprint.mean(axis=0)
+        reach = np.sqrt(((self.footprint - hub) ** 2).sum(axis=1).max()) + margin + 1e-9
+        z = p[..., 2]
+        near = (
+            (((p[..., :2] - hub) ** 2).sum(axis=-1) <= reach * reach)
+            & (z >= self.bottom - margin - 1e-9)
+            & (z <= self.top + margin + 1e-9)
+        )
+        out = np.full(p.shape[:-1], np.inf)
+        out[near] = self.signed_distance(p[near])
+        return out
 
 
 def _finger_capsules(model: mujoco.MjModel) -> list[tuple[str, int]]:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -94,6 +95,13 @@ class SampledGrasp:
     #: ``hand_q`` posture; ``theta`` and ``points`` are then the other three fingers'), or None
     idle: int | None = None
 
+    def contacts_label(self) -> str:
+        """Which fingers take the contacts, for a log."""
+        if self.idle is None:
+            return "sampled contacts"
+        fingers = ", ".join(robot.FINGERS[f] for f in pressing_fingers(self.idle))
+        return f"three sampled contacts ({fingers}; {robot.FINGERS[self.idle]} held clear)"
+
 
 #: A three-contact grasp's idle finger stays this far (m) from the block and the other fingers.
 IDLE_CLEARANCE = 0.008
@@ -114,6 +122,11 @@ class _Candidates:
     share: NDArray[np.float64]
 
 
+#: Every finger's candidate contacts (:func:`finger_candidates`) by palm pose and squeeze: one
+#: search's, whose samples, block and sampling parameters do not change.
+CandidateCache = dict[bytes, list[_Candidates]]
+
+
 def finger_candidates(
     samples: FingerSamples,
     finger: int,
@@ -132,7 +145,8 @@ def finger_candidates(
     p0, R0 = palm
     centre, yaw = pose_xy
     tips = samples.tip[:, finger] @ R0.T + p0
-    inside = -prism.signed_distance(tips)
+    # measured where a tip may lie deep enough in the block (+inf elsewhere: not)
+    inside = -prism.signed_distance_near(tips, params.shortfall - criteria.squeeze)
     low, high = prism.bottom + BOTTOM_MARGIN, prism.top - TOP_MARGIN
     near = np.flatnonzero(
         (inside >= criteria.squeeze - params.shortfall)
@@ -153,9 +167,10 @@ def finger_candidates(
     n_world = place_polygon(normals[edge], (0.0, 0.0), yaw)
     n_local = np.column_stack([n_world, np.zeros(len(near))]) @ R0
     off = np.abs(inside[near] - criteria.squeeze) / params.tolerance
+    # a link's penetration counts only where it is inside the block: measured within reach
+    measure = partial(prism.signed_distance_near, within=float(samples.radius[finger].max()))
     share = np.maximum(
-        off,
-        samples.posture_shares(finger, near, p0, R0, n_local, prism.signed_distance, criteria),
+        off, samples.posture_shares(finger, near, p0, R0, n_local, measure, criteria)
     )
     links = samples.links[near, finger] @ R0.T + p0
     above = (links[..., 2] - samples.radius[finger]).min(axis=1) - prism.bottom
@@ -197,12 +212,14 @@ def sampled_lateral_grasp(
     pose_xy: tuple[NDArray[np.float64], float],
     squeeze: float,
     params: LateralSampling = DEFAULT_SAMPLING,
+    cache: CandidateCache | None = None,
 ) -> SampledGrasp | None:
     """The lowest-S_G grasp of one sampled candidate contact per finger
     (:func:`finger_candidates`) with the arm at ``qpos``'s posture (``model``, the planning
-    model), the pads apart; None when a finger has no candidate or no combination fits."""
+    model), the pads apart; None when a finger has no candidate or no combination fits.
+    ``cache``: the candidates of earlier searches at the same palm pose (:data:`CandidateCache`)."""
     palm = _palm(model, qpos)
-    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params)
+    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params, cache)
     best = _lowest_s_g(per, polygon, params)
     if best is None:
         return None
@@ -221,6 +238,7 @@ def three_contact_lateral_grasp(
     pose_xy: tuple[NDArray[np.float64], float],
     squeeze: float,
     params: LateralSampling = DEFAULT_SAMPLING,
+    cache: CandidateCache | None = None,
 ) -> SampledGrasp | None:
     """The lowest-S_G grasp of three contacts, the thumb's and two fingers' (the paper's grasp
     controller takes any number of contacts, section 3 and Appendix B), at the palm pose of
@@ -232,7 +250,7 @@ def three_contact_lateral_grasp(
     0.33. ``theta`` and ``points`` are the three pressing fingers', in finger order. None when
     no idle finger has such a posture or no combination fits."""
     palm = _palm(model, qpos)
-    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params)
+    per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params, cache)
     thumb = len(robot.FINGERS) - 1
     best = None
     for idle in range(thumb):
@@ -288,8 +306,13 @@ def _all_candidates(
     pose_xy: tuple[NDArray[np.float64], float],
     squeeze: float,
     params: LateralSampling,
+    cache: CandidateCache | None = None,
 ) -> list[_Candidates]:
-    """Every finger's candidate contacts (:func:`finger_candidates`) with the palm at ``palm``."""
+    """Every finger's candidate contacts (:func:`finger_candidates`) with the palm at ``palm``;
+    taken from ``cache`` where this palm pose's are in it, else searched and put in it."""
+    key = palm[0].tobytes() + palm[1].tobytes() + np.float64(squeeze).tobytes()
+    if cache is not None and key in cache:
+        return cache[key]
     criteria = Criteria(
         params.tolerance,
         MAX_PAD_ANGLE,
@@ -298,10 +321,13 @@ def _all_candidates(
         MAX_LINK_PENETRATION,
         squeeze,
     )
-    return [
+    per = [
         finger_candidates(samples, f, palm, prism, polygon, pose_xy, criteria, params)
         for f in range(len(robot.FINGERS))
     ]
+    if cache is not None:
+        cache[key] = per
+    return per
 
 
 def _lowest_s_g(
@@ -370,9 +396,10 @@ def _idle_posture(
     for chunk in np.array_split(order, max(1, len(order) // IDLE_CHUNK)):
         links = samples.links[chunk, idle] @ R0.T + p0  # (k, P, 3)
         tips = samples.tip[chunk, idle] @ R0.T + p0
+        # only whether each is IDLE_CLEARANCE clear counts: measured within that
         clear = np.minimum(
-            (prism.signed_distance(links) - radius).min(axis=1),
-            prism.signed_distance(tips) - robot.PAD_RADIUS,
+            (prism.signed_distance_near(links, radius.max() + IDLE_CLEARANCE) - radius).min(1),
+            prism.signed_distance_near(tips, robot.PAD_RADIUS + IDLE_CLEARANCE) - robot.PAD_RADIUS,
         )
         above = (links[..., 2] - radius).min(axis=1) - prism.bottom
         for i in np.flatnonzero((clear >= IDLE_CLEARANCE) & (above >= params.table_clearance)):

@@ -5,7 +5,7 @@ lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from controllers.arm_path import execute_path
 from controllers.cspace import CollisionChecker
 from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
-from controllers.finger_assignment import FingerContacts, pressing_fingers
+from controllers.finger_assignment import FingerContacts
 from controllers.finger_geometry import fingertips_at
 from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
@@ -21,6 +21,7 @@ from controllers.grasp.session import keep_contacts
 from controllers.grasp.session3d import GraspSynthesis3D
 from controllers.hand_reach import CONTACT_SEPARATION, SQUEEZE_REACH
 from controllers.lateral_grasp import (
+    CandidateCache,
     SampledGrasp,
     sampled_lateral_grasp,
     three_contact_lateral_grasp,
@@ -72,9 +73,16 @@ def rise_clear(ep: Episode, clear: CollisionChecker) -> float | None:
     return len(risen) * RISE_STEP
 
 
-#: Each palm pose beside the block with its sampled grasp (None where the samples make none),
-#: by the wrist rolls searched and whether the grasps are of three contacts.
-PoseGrasps = dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]]
+@dataclass
+class PoseGrasps:
+    """One pre-shape search's palm poses beside the block, each with its sampled grasp (None
+    where the samples make none), by the wrist rolls searched and whether the grasps are of
+    three contacts; and the fingers' candidate contacts at each pose, which both share."""
+
+    grasps: dict[tuple[tuple[float, ...], bool], list[tuple[PalmPose, SampledGrasp | None]]] = (
+        field(default_factory=dict)
+    )
+    candidates: CandidateCache = field(default_factory=dict)
 
 
 def finger_samples(ep: Episode) -> FingerSamples:
@@ -261,7 +269,7 @@ def lateral_preshape(ep: Episode, skip: int = 0) -> str | None:
     ep.preshape_contacts = None
     ep.preshape_hand_q = None
     ep.preshape_rolls = None
-    memo: PoseGrasps = {}  # each palm pose's sampled grasp, searched once a call
+    memo = PoseGrasps()  # each palm pose's sampled grasp, searched once a call
     if ep.config.lateral_contacts == "sampled-first":
         done = _gated_preshapes(ep, skip, memo)
         if done is not None:
@@ -362,13 +370,13 @@ def _sampled_poses(
     most ``band[1]``, the hand in the grasp's posture; each pose's grasp goes into ``grasps``
     (by the pose's id). ``three``: the three-contact grasps instead. The grasps at each pose
     are searched once per ``memo``."""
-    if (rolls, three) not in memo:
-        memo[rolls, three] = _pose_grasps(ep, rolls, three)
+    if (rolls, three) not in memo.grasps:
+        memo.grasps[rolls, three] = _pose_grasps(ep, rolls, three, memo.candidates)
     hand_adr = robot.hand_qpos_addresses(ep.world.model)
     # only a start that is already a grasp (Eq. 13), in this band
     kept = [
         (pose, grasp)
-        for pose, grasp in memo[rolls, three]
+        for pose, grasp in memo.grasps[rolls, three]
         if grasp is not None and band[0] < grasp.s_g <= band[1]
     ]
     by_reserve = ep.config.lateral_reserve_order
@@ -386,8 +394,7 @@ def _sampled_poses(
     for rank, (pose, grasp) in enumerate(kept):
         qpos = pose.qpos.copy()
         qpos[hand_adr] = grasp.hand_q
-        contacts = "sampled contacts" if grasp.idle is None else _three(grasp.idle)
-        label = f"{pose.label}, {contacts} S_G {grasp.s_g:.3f}"
+        label = f"{pose.label}, {grasp.contacts_label()} S_G {grasp.s_g:.3f}"
         group = pose.group
         if by_reserve:
             label += f", reserve {reserves[id(grasp)]:.2f} N"
@@ -402,12 +409,12 @@ def _sampled_poses(
 
 
 def _pose_grasps(
-    ep: Episode, rolls: tuple[float, ...], three: bool
+    ep: Episode, rolls: tuple[float, ...], three: bool, cache: CandidateCache
 ) -> list[tuple[PalmPose, SampledGrasp | None]]:
     """Each palm pose beside the block at wrist ``rolls`` with its sampled grasp
     (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, or
     :func:`~controllers.lateral_grasp.three_contact_lateral_grasp` when ``three``), None where
-    the hand's samples make none."""
+    the hand's samples make none; the fingers' candidates at each pose shared through ``cache``."""
     params = replace(ep.config.palm_pose, lateral_rolls=rolls)
     query = reach_query(ep)
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
@@ -424,6 +431,7 @@ def _pose_grasps(
                 ep.target.polygon,
                 pose_xy,
                 query.squeeze,
+                cache=cache,
             ),
         )
         for pose in lateral_poses(where, params, side_arcs(ep), sampled=True)
@@ -447,12 +455,6 @@ def _search_sampled(
         heights_of=lambda pose: grasps[id(pose)].points[:, 2],
         idle_of=lambda pose: grasps[id(pose)].idle,
     )
-
-
-def _three(idle: int) -> str:
-    """A three-contact grasp, for the log."""
-    fingers = [robot.FINGERS[f] for f in pressing_fingers(idle)]
-    return f"three sampled contacts ({', '.join(fingers)}; {robot.FINGERS[idle]} held clear)"
 
 
 def _pinch_search(ep: Episode, skip: int) -> PalmPoseResult:

@@ -19,6 +19,7 @@ import pytest
 from benchmarks import (
     arm_reach,
     bench_grasp,
+    bench_lateral_search,
     bench_parallel,
     bench_reach,
     bench_sim,
@@ -216,6 +217,7 @@ VISION_BENCH_CASES = [
 BENCHMARK_CASES = [
     (bench_grasp.main, ["--trials", "0"], "argument --trials"),
     (bench_grasp.main, ["--repeats", "x"], "argument --repeats"),
+    (bench_lateral_search.main, ["--repeats", "0"], "argument --repeats"),
     (bench_sim.main, ["--seconds", "nan"], "argument --seconds: must be a number in (0, 600]"),
     (bench_sim.main, ["--width", "-5"], "argument --width"),
     (bench_sim.main, ["--scene", "nope"], "unknown scene 'nope'"),

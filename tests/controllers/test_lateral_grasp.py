@@ -19,7 +19,11 @@ from controllers.finger_geometry import PerceivedPrism, fingertips_at
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
 from controllers.hand_reach import CONTACT_SEPARATION, TOP_MARGIN, check_reach
-from controllers.lateral_grasp import LateralSampling, sampled_lateral_grasp
+from controllers.lateral_grasp import (
+    LateralSampling,
+    sampled_lateral_grasp,
+    three_contact_lateral_grasp,
+)
 from controllers.palm_candidates import (
     DEFAULT_PALM_POSE,
     PoseSetting,
@@ -367,3 +371,26 @@ def test_a_sampled_grasp_the_controller_moves_out_of_reach_is_taken_where_the_ha
     j = cycle["judgement"]
     assert j["place_error_mm"] < 20.0 and j["tilt_deg"] < 10.0
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
+
+
+def test_the_four_and_three_contact_searches_share_each_poses_candidates(square, samples) -> None:
+    """With one candidate cache (``cache=``), the three-contact search at a palm pose takes the
+    fingers' candidate contacts the four-contact search found there (one entry per pose, none
+    added) and both find exactly the grasps they find each on their own."""
+    world, target, prism, poses = square
+    pose_xy = (np.asarray(target.position_xy), target.yaw)
+    cache: dict = {}
+    for pose in poses[:6]:
+        args = (world.model, pose.qpos, samples, prism, target.polygon, pose_xy, SQUEEZE)
+        before = len(cache)
+        shared = [sampled_lateral_grasp(*args, cache=cache)]
+        assert len(cache) == before + 1
+        shared.append(three_contact_lateral_grasp(*args, cache=cache))
+        assert len(cache) == before + 1  # the three-contact search found them there
+        alone = [sampled_lateral_grasp(*args), three_contact_lateral_grasp(*args)]
+        for a, b in zip(shared, alone, strict=True):
+            assert (a is None) == (b is None)
+            if a is not None:
+                np.testing.assert_array_equal(a.theta, b.theta)
+                np.testing.assert_array_equal(a.hand_q, b.hand_q)
+                assert (a.s_g, a.load, a.idle) == (b.s_g, b.load, b.idle)
