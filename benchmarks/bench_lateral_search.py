@@ -20,6 +20,7 @@ import numpy as np
 
 from controllers import lateral_grasp
 from controllers.cspace import CollisionChecker
+from controllers.errors import ReachError
 from controllers.finger_geometry import PerceivedPrism
 from controllers.finger_samples import FingerSamples
 from controllers.palm_candidates import PoseSetting, lateral_poses
@@ -34,7 +35,7 @@ PROG = "python -m benchmarks.bench_lateral_search"
 SQUEEZE = 0.004
 
 
-def _setting() -> tuple[World, ReachTarget, PerceivedPrism, list]:
+def square_at_lateral_goal() -> tuple[World, ReachTarget, PerceivedPrism, list]:
     """single_square with the arm at its lateral coarse goal and the palm poses beside it."""
     world = World.build(load_scene("single_square"))
     target = ReachTarget.from_world(world, "square")
@@ -44,7 +45,7 @@ def _setting() -> tuple[World, ReachTarget, PerceivedPrism, list]:
         CollisionChecker(world, hand_q=PRESHAPE), "lateral", [(pos, rot)], world.arm_qpos()
     )
     if goal is None:
-        raise SystemExit(f"{PROG}: single_square has no lateral goal posture")
+        raise ReachError("single_square has no lateral goal posture")
     world.data.qpos[robot.arm_qpos_addresses(world.model)] = goal.q
     mujoco.mj_forward(world.model, world.data)
     prism = PerceivedPrism.of(target, world.scene.table.height)
@@ -53,7 +54,7 @@ def _setting() -> tuple[World, ReachTarget, PerceivedPrism, list]:
 
 
 def run(repeats: int) -> None:
-    world, target, prism, poses = _setting()
+    world, target, prism, poses = square_at_lateral_goal()
     samples = FingerSamples.draw()
     pose_xy = (np.asarray(target.position_xy), target.yaw)
     shares = "cache" in inspect.signature(lateral_grasp.sampled_lateral_grasp).parameters
@@ -84,7 +85,7 @@ def run(repeats: int) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark with the command line ``argv``; returns the exit status."""
-    return cli.run_main(lambda: _run(argv), prog=PROG, errors=cli.ERRORS)
+    return cli.run_main(lambda: _run(argv), prog=PROG, errors=(ReachError,))
 
 
 def _run(argv: Sequence[str] | None) -> int:

@@ -3,17 +3,14 @@ single_square with the arm at its lateral goal, the palm poses beside it and the
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import pytest
 
+from benchmarks.bench_lateral_search import square_at_lateral_goal
 from controllers.arm_path import execute_path
-from controllers.cspace import CollisionChecker
 from controllers.finger_geometry import PerceivedPrism
 from controllers.finger_samples import FingerSamples
-from controllers.palm_candidates import PoseSetting, lateral_poses
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
-from hand_sim import robot
+from controllers.reach import ReachTarget, plan_coarse_reach
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
@@ -39,20 +36,8 @@ def hovering() -> tuple[World, ReachTarget]:
 @pytest.fixture(scope="module")
 def square() -> tuple[World, ReachTarget, PerceivedPrism, list]:
     """single_square with the arm at its lateral coarse goal, and the sampled search's palm
-    poses beside the block."""
-    world = World.build(load_scene("single_square"))
-    target = ReachTarget.from_world(world, "square")
-    base = world.data.xpos[world.model.body(robot.arm_name("arm_base")).id][:2]
-    ((pos, rot),) = goal_poses(target, base)["lateral"]
-    goal = solve_goal(
-        CollisionChecker(world, hand_q=PRESHAPE), "lateral", [(pos, rot)], world.arm_qpos()
-    )
-    assert goal is not None
-    world.data.qpos[robot.arm_qpos_addresses(world.model)] = goal.q
-    mujoco.mj_forward(world.model, world.data)
-    prism = PerceivedPrism.of(target, world.scene.table.height)
-    poses = lateral_poses(PoseSetting(world, world.model, target, rot), sampled=True)
-    return world, target, prism, poses
+    poses beside the block (as the lateral search's benchmark sets them up)."""
+    return square_at_lateral_goal()
 
 
 @pytest.fixture(scope="module")
