@@ -183,6 +183,7 @@ def plan_delivery(
     nearer: bool = True,
     qpos: ArrayLike | None = None,
     with_transit: bool = True,
+    check_lift: bool = True,
 ) -> DeliveryPlan:
     """Plan to carry ``block`` (held by the hand now, on the table or already lifted) to
     ``place_xy`` on the table (section 5.2, "Deliver": "the path is computed by the same harmonic
@@ -200,7 +201,10 @@ def plan_delivery(
     ``qpos``: the configuration the plan starts from, the block held as it is there (default
     the world's now). Without ``with_transit`` only the lift and the set-down are planned, not
     the harmonic transit between them (whether a grasp can set its block down at all); the
-    plan's path is then the lift followed by the set-down, a check's, not one to follow."""
+    plan's path is then the lift followed by the set-down, a check's, not one to follow.
+    Without ``check_lift`` the lift is solved but not checked for collision (Deliver's own lift
+    is sensed as it rises, not planned: whether a grasp can set its block down asks only of the
+    way from the lifted block to the place point)."""
     place = np.asarray(place_xy, dtype=float)
     if place.shape != (2,) or not np.all(np.isfinite(place)):
         raise ReachError(f"place point must be a finite (x, y), got {place_xy!r}")
@@ -241,7 +245,7 @@ def plan_delivery(
         free_ik = checker.solve_ik(p0 + np.array([0.0, 0.0, clear]), R0, q0)
         if not (lift_ik.found and free_ik.found):
             return fail("the block cannot be lifted straight up from here")
-        if first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
+        if check_lift and first_collision(checker, np.stack([free_ik.q, lift_ik.q])) is not None:
             return fail("lifting the block collides")
         start = lift_ik.q
         lead.append(start)

@@ -6,6 +6,7 @@ lateral pre-shape (Coarse Reach, and a lateral regrasp)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +41,7 @@ from controllers.palm_candidates import (
 )
 from controllers.palm_pose import PalmPoseResult, ReachQuery, search_poses
 from fsm.context import Episode
+from fsm.handlers.set_down_pitch import grasp_sets_down, set_down_gate
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
 
@@ -442,13 +444,20 @@ def _search_sampled(
     ep: Episode, poses: list[PalmPose], grasps: dict[int, SampledGrasp], skip: int
 ) -> PalmPoseResult:
     """The first of ``poses`` (after ``skip``) from which the hand reaches its sampled grasp's
-    contacts at their heights and that is approached without collision
-    (:func:`controllers.palm_pose.search_poses`)."""
+    contacts at their heights, that is approached without collision
+    (:func:`controllers.palm_pose.search_poses`) and whose grasp can set the block down at the
+    place point (:func:`fsm.handlers.set_down_pitch.set_down_gate`, until
+    ``config.lateral_grasp_set_down_checks`` poses were passed over for it)."""
+    approach_of = partial(plan_approach, ep)
+    checks = ep.config.lateral_grasp_set_down_checks
+    if checks and ep.place is not None:
+        sets_down = partial(grasp_sets_down, ep, check_lift=False)
+        approach_of = set_down_gate(approach_of, sets_down, checks)
     return search_poses(
         reach_query(ep),
         poses,
         lambda pose: grasps[id(pose)].theta,
-        lambda qpos, contacts: plan_approach(ep, qpos, contacts),
+        approach_of,
         tries=1,
         reachable_only=True,
         skip=skip,

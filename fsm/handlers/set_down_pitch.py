@@ -5,14 +5,22 @@ whether a hand holding the block as that goal would can set it down at the place
 A level hand sets its block down with its wrist and forearm low along the radial line, where a
 neighbour standing up to 25 cm inward of the place point is in their way; pitched down
 (:data:`controllers.reach.LATERAL_TILTS`) the forearm passes above it. Where the goal's hand has
-no set-down, the pitched goals are tried in order and the first whose hand has one is taken."""
+no set-down, the pitched goals are tried in order and the first whose hand has one is taken.
+The palm-pose search then asks the same of each grasp it would take
+(:func:`set_down_gate`)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
+import numpy as np
+from numpy.typing import NDArray
+
 from controllers.delivery import plan_delivery
+from controllers.finger_assignment import FingerContacts
+from controllers.motion import ApproachPlan
 from controllers.palm_candidates import PoseSetting, lateral_poses
 from controllers.reach import (
     LATERAL_TILTS,
@@ -40,18 +48,48 @@ def goal_sets_down(ep: Episode, goal: ApproachGoal) -> bool:
     )
     where = PoseSetting(ep.world, ep.planning, ep.target, goal.palm_rotation, goal.q)
     poses = lateral_poses(where, nearest, sampled=True)
-    if not poses:
-        return False
+    return bool(poses) and grasp_sets_down(ep, poses[0].qpos)
+
+
+def grasp_sets_down(ep: Episode, qpos: NDArray[np.float64], check_lift: bool = True) -> bool:
+    """Whether the hand in configuration ``qpos`` (arm and fingers), holding the block where it
+    stands, can lift it and set it down at the cycle's place point
+    (:func:`controllers.delivery.plan_delivery` without the transit; without ``check_lift``,
+    from the lifted block, the lift itself unchecked as Deliver's is)."""
     plan = plan_delivery(
         ep.world,
         ep.target_name,
         ep.place,
         block_height=ep.model.height,
         nearer=ep.cycle == 0,
-        qpos=poses[0].qpos,
+        qpos=qpos,
         with_transit=False,
+        check_lift=check_lift,
     )
     return plan.found
+
+
+def set_down_gate(
+    plan_approach: Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None],
+    sets_down: Callable[[NDArray[np.float64]], bool],
+    checks: int,
+) -> Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None]:
+    """``plan_approach`` (a palm pose's approach: a plan, or None to pass the pose over) that
+    also passes over a pose whose grasp cannot set the block down at the place point
+    (``sets_down(qpos)``, e.g. :func:`grasp_sets_down`, the hand at its contacts), the way an
+    approach that collides is passed over. Once ``checks`` poses have been passed over for it,
+    the approached poses after are taken unasked (Deliver then names a missing set-down)."""
+    refused = 0
+
+    def gated(qpos: NDArray[np.float64], contacts: FingerContacts) -> ApproachPlan | None:
+        nonlocal refused
+        plan = plan_approach(qpos, contacts)
+        if plan is None or refused >= checks or sets_down(qpos):
+            return plan
+        refused += 1
+        return None
+
+    return gated
 
 
 def pitch_for_set_down(ep: Episode, plan: CoarseReachPlan) -> tuple[CoarseReachPlan, str]:
