@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
+import pickle
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,3 +42,23 @@ def lateral_episode(
         config=config,
     )
     return run_episode(options)
+
+
+def shared_lateral_episode(tmp_path_factory, scene: str, seed: int) -> EpisodeResult:
+    """:func:`lateral_episode` with the default config, run once per test session for every test
+    that reads it (the workers of ``pytest -n`` share it through a lock and the pickled result
+    in the session's folder): tests of different features that start from the same default
+    episode do not each run it again."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # this session's folder, shared by its xdist workers
+    name = f"lateral-{scene}-{seed}"
+    saved = root / f"{name}.pickle"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not saved.is_file():
+            result = lateral_episode(root / name, scene, seed)
+            partial = saved.with_suffix(".partial")
+            partial.write_bytes(pickle.dumps(result))
+            partial.replace(saved)
+        return pickle.loads(saved.read_bytes())

@@ -23,7 +23,7 @@ import pytest
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.machine import EpisodeResult
 from fsm.states import State
-from tests.fsm.lateral import lateral_episode
+from tests.fsm.lateral import lateral_episode, shared_lateral_episode
 
 SEED = 69
 #: the regrasp after a slip blind to the reserve: the next palm pose in order
@@ -68,7 +68,7 @@ def _delivered(result: EpisodeResult) -> None:
 
 @pytest.mark.e2e
 def test_a_lift_failure_is_regrasped_with_more_reserve_or_caught_by_a_trial_lift(
-    tmp_path: Path,
+    tmp_path: Path, tmp_path_factory
 ) -> None:
     """Blind to the reserve: both grasps slip ("block slipped during lift"). The default: the
     second grasp keeps more reserve than the first, says so in the log, and delivers the block.
@@ -78,7 +78,7 @@ def test_a_lift_failure_is_regrasped_with_more_reserve_or_caught_by_a_trial_lift
     assert not blind.success
     assert blind.failure == "block slipped during lift", blind.failure
 
-    result = lateral_episode(tmp_path / "default", "random", SEED)
+    result = shared_lateral_episode(tmp_path_factory, "random", SEED)
     (slip,) = _slips(result)
     assert slip.startswith("slipped at the lift"), slip
     reach = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]

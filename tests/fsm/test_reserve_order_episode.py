@@ -13,7 +13,7 @@ import pytest
 
 from fsm.config import DEFAULT_CONFIG
 from fsm.states import State
-from tests.fsm.lateral import lateral_episode
+from tests.fsm.lateral import lateral_episode, shared_lateral_episode
 
 SEED = 69
 
@@ -26,11 +26,11 @@ def _first_reserve(result) -> float:
 
 @pytest.mark.e2e
 def test_the_pose_with_the_most_friction_to_spare_is_taken_first_and_holds(
-    tmp_path: Path,
+    tmp_path: Path, tmp_path_factory
 ) -> None:
     """By the reserve's order the first grasp's reserve is above the default order's first, its
     Coarse Reach log names it, and the block is delivered at that first grasp."""
-    default = lateral_episode(tmp_path / "default", "random", SEED)
+    default = shared_lateral_episode(tmp_path_factory, "random", SEED)
     ordered = lateral_episode(
         tmp_path / "ordered", "random", SEED, replace(DEFAULT_CONFIG, lateral_reserve_order=True)
     )
