@@ -5,10 +5,8 @@ wherever they ran (wall times aside)."""
 
 from __future__ import annotations
 
-import fcntl
 import importlib.util
 import json
-import os
 import re
 import shutil
 from collections import Counter
@@ -37,6 +35,7 @@ from experiments.bench.report import DPI, FIG_SIZE, FIGURES, write_report
 from experiments.bench.stats import summarize, wilson_interval
 from fsm import handlers
 from fsm.states import State
+from tests.session import session_lock
 
 #: The controller the episode tests run (needs no trained model).
 CONTROLLER = "kb"
@@ -412,12 +411,8 @@ def test_a_crash_outside_the_states_is_an_episode_crashed_line(monkeypatch) -> N
 def two_workers(tmp_path_factory) -> Path:
     """Seeds 0-2 (3 to 5 blocks each) in 2 worker processes, run once per test session: the
     workers of ``pytest -n`` share it through a lock (both cores are busy with it anyway)."""
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent  # this session's folder, shared by its xdist workers
-    out = root / "bench-two-workers"
-    with open(root / "bench-two-workers.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    with session_lock(tmp_path_factory, "bench-two-workers") as root:
+        out = root / "bench-two-workers"
         if not (out / "report.md").is_file():
             shutil.rmtree(out, ignore_errors=True)
             argv = [*QUICK, "--seeds", "0:3", "--workers", "2", "--out", str(out)]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import fcntl
-import os
 import pickle
 from dataclasses import replace
 from pathlib import Path
@@ -12,6 +10,7 @@ from experiments.bench.jobs import blocks_for_seed
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.context import EpisodeOptions
 from fsm.machine import EpisodeResult, run_episode
+from tests.session import session_lock
 
 #: The lateral squeeze before the holding forces (issue 23, twenty-third session): the balanced
 #: shares, the pre-shape search blind to the friction reserve (the regrasp after a slip too).
@@ -49,13 +48,9 @@ def shared_lateral_episode(tmp_path_factory, scene: str, seed: int) -> EpisodeRe
     that reads it (the workers of ``pytest -n`` share it through a lock and the pickled result
     in the session's folder): tests of different features that start from the same default
     episode do not each run it again."""
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent  # this session's folder, shared by its xdist workers
     name = f"lateral-{scene}-{seed}"
-    saved = root / f"{name}.pickle"
-    with open(root / f"{name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    with session_lock(tmp_path_factory, name) as root:
+        saved = root / f"{name}.pickle"
         if not saved.is_file():
             result = lateral_episode(root / name, scene, seed)
             partial = saved.with_suffix(".partial")
