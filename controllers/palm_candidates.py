@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
@@ -158,6 +158,21 @@ def robot_base_xy(world: World) -> tuple[float, float]:
     return float(x), float(y)
 
 
+def approach_origin(
+    base_xy: ArrayLike, target: ReachTarget, coarse_rotation: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Where a lateral hand's approach axis comes from in the table plane, for
+    :func:`lateral_arcs` and :func:`side_contacts`: the arm's base (``base_xy``) when the
+    coarse reach's palm (``coarse_rotation``, approach axis = its z column) faces the block from
+    the base's side, else the base mirrored through the block's centre (a palm beyond the
+    block, facing back towards the base: :func:`controllers.reach.plan_coarse_reach`)."""
+    base = np.asarray(base_xy, dtype=float)
+    centre = np.asarray(target.position_xy, dtype=float)
+    if float(coarse_rotation[:2, 2] @ (centre - base)) >= 0.0:
+        return base
+    return 2.0 * centre - base
+
+
 def turn_about_vertical(angle: float) -> NDArray[np.float64]:
     """Rotation by ``angle`` (rad) about the vertical."""
     c, s = np.cos(angle), np.sin(angle)
@@ -172,8 +187,9 @@ def lateral_poses(
     sampled: bool = False,
     hand: NDArray[np.float64] | None = None,
 ) -> list[PalmPose]:
-    """Palm poses beside the perceived block: the approach axis radial (the arm has five joints)
-    and horizontal, or pitched down as the coarse reach's (``coarse_rotation``, its goal palm
+    """Palm poses beside the perceived block: the approach axis radial (the arm has five joints;
+    from the base's side of the block, or from its far side where the coarse reach's is) and
+    horizontal, or pitched down as the coarse reach's (``coarse_rotation``, its goal palm
     rotation; :data:`controllers.reach.LATERAL_TILTS`), hand y up as the coarse reach put it,
     turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the block's
     nearest point along the axis (which passes LATERAL_DEPTH below the top of the block's
@@ -193,7 +209,9 @@ def lateral_poses(
     arm_adr, checker, q_arm = where.arm_start()
     base = np.asarray(robot_base_xy(world))
     centre = np.array([*target.position_xy, target.top_z - LATERAL_DEPTH])
-    axis = np.array([*(centre[:2] - base), 0.0])
+    # from the base's side, or (-1) from the block's far side facing back towards the base
+    side = 1.0 if float(coarse_rotation[:2, 2] @ (centre[:2] - base)) >= 0.0 else -1.0
+    axis = side * np.array([*(centre[:2] - base), 0.0])
     axis /= np.linalg.norm(axis)
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
     # the coarse reach's pitch of the approach axis below the horizontal (0 but where the arm
@@ -216,7 +234,7 @@ def lateral_poses(
                 palm = centre + (near - gap) * lateral_frame(axis, tilt)[:, 2]
                 palm += shift * np.cross(up, axis)
                 # the approach axis through the shifted palm is radial, as the arm has it
-                radial = np.array([*(palm[:2] - base), 0.0])
+                radial = side * np.array([*(palm[:2] - base), 0.0])
                 radial /= np.linalg.norm(radial)
                 rot = lateral_frame(radial, tilt, roll)
                 if up[2] < 0:  # hand y down: the coarse reach's frame turned about the axis

@@ -266,13 +266,14 @@ def lateral_frame(
 
 
 def lateral_fallback_poses(
-    target: ReachTarget, base_xy: ArrayLike, tilt: float | None = None
+    target: ReachTarget, base_xy: ArrayLike, tilt: float | None = None, *, far: bool = False
 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """The lateral goals of :data:`LATERAL_GOAL_FALLBACKS`, in their order (only those pitched
-    ``tilt`` down, rad, when given)."""
+    ``tilt`` down, rad, when given); ``far``: from the block's far side, the palm beyond it
+    facing back towards the base."""
     radial = _radial(target, base_xy)
     return [
-        lateral_pose(target, radial, d, g, t)
+        lateral_pose(target, -radial if far else radial, d, g, t)
         for d, g, t in LATERAL_GOAL_FALLBACKS
         if tilt is None or abs(t - tilt) < 1e-9
     ]
@@ -376,7 +377,16 @@ def plan_coarse_reach(
     the model collisions are checked in (default the world's; the task cycle passes the
     planning model holding the perceived target, :mod:`controllers.planning_model`).
     ``lateral_tilt``: the lateral goals are only those of :data:`LATERAL_GOAL_FALLBACKS`
-    pitched this far down (rad), e.g. one of :data:`LATERAL_TILTS`."""
+    pitched this far down (rad), e.g. one of :data:`LATERAL_TILTS`.
+
+    Where no lateral goal on the base's side of the block has a collision-free posture (and
+    no ``lateral_tilt`` is asked for), the same goals are tried from its far side: the palm
+    beyond the block, facing back towards the base along the radial line. The 5-joint arm's
+    approach axis stays in its waist's vertical plane, so the radial line's two ends are the
+    only directions a lateral palm can face; a neighbour within about 18 cm of the block on
+    the base's side leaves no near goal, and the far goals found are pitched 30-45 deg down,
+    the forearm passing over the block (docs/task_cycle.md, "A far-side palm, the next pitch,
+    and grasps that hold before the bands")."""
     unknown = [a for a in approaches if a not in APPROACHES]
     if unknown or not approaches:
         raise ReachError(
@@ -396,6 +406,10 @@ def plan_coarse_reach(
             goal = _first_goal(
                 checker, lateral_fallback_poses(target, base_xy, lateral_tilt), q_start
             )
+        if goal is None and approach == "lateral" and lateral_tilt is None:
+            # none on the base's side: the palm beyond the block, facing back
+            far = lateral_fallback_poses(target, base_xy, far=True)
+            goal = _first_goal(checker, far, q_start)
         if goal is None:
             continue
         goals[approach] = goal

@@ -119,6 +119,16 @@ class TaskConfig:
     #: before those whose grasp does not. Measured in docs/task_cycle.md, "A squeeze that holds
     #: the weight".
     lateral_reserve_first: bool = True
+    #: The sampled lateral pre-shape search tries the palm poses whose grasp keeps a friction
+    #: reserve by the 3-D model in every band of S_G before any whose grasp does not (the bands
+    #: searched twice, in their order: first for the grasps that keep one, then for the rest).
+    #: On the bench of record a lifted grasp without a reserve lost its block 19 times in 51
+    #: (random seeds 0-199) and 16 in 27 (200-299), one with a reserve 20 in 165 and 17 in 85.
+    #: Set from those counts, before any episode with it ran. Measured together with the
+    #: far-side palm and the next pitch (random seeds 0-99: 92 / 100 against 89; 100-199: 86
+    #: against 84; 200-299: 78 against 79) in docs/task_cycle.md, "A far-side palm, the next
+    #: pitch, and grasps that hold before the bands".
+    lateral_reserve_before_bands: bool = True
     #: The sampled lateral pre-shape search tries, within each band of S_G, the palm poses in
     #: the order of their grasp's friction reserve by the 3-D model, the most to spare first
     #: (instead of the nearest palm and least reach load first, the reserve's sign before
@@ -176,11 +186,13 @@ class TaskConfig:
     lateral_set_down_pitch: bool = True
     #: Lateral grasps: the sampled pre-shape's palm-pose search passes over a pose whose grasp
     #: (the hand at its contacts) cannot set the block down at the place point, as it passes
-    #: over one whose approach collides (fsm.handlers.set_down_pitch.set_down_gate), until this
-    #: many poses have been passed over for it; the poses after are taken unasked. 0 turns it
-    #: off. 4 was set before any bench episode with the gate ran. Random seeds 0-99: 89 / 100
-    #: against 89 without; 100-149: 40 / 50 against 39; 150-199: 44 / 50 against 44. Measured
-    #: in docs/task_cycle.md, "Each grasp asked for its own set-down".
+    #: over one whose approach collides (fsm.handlers.set_down_pitch.SetDownGate), until this
+    #: many poses have been passed over for it in one search. Then, while a lateral axis pitched
+    #: further down is left (controllers.reach.LATERAL_TILTS), Coarse Reach is entered again for
+    #: it; at the last pitch the poses after are taken unasked. 0 turns it off. 4 was set before
+    #: any bench episode with the gate ran. Random seeds 0-99: 89 / 100 against 89 without;
+    #: 100-149: 40 / 50 against 39; 150-199: 44 / 50 against 44. Measured in docs/task_cycle.md,
+    #: "Each grasp asked for its own set-down".
     lateral_grasp_set_down_checks: int = 4
     regrasp_rolls: tuple[float, ...] = (np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
     #: The held load must be at least this share of the perceived block's weight after the lift,

@@ -88,6 +88,9 @@ class CycleRecord:
     #: lateral one, 15-45 where the arm reaches a lateral goal only pitched down
     #: (controllers.reach.LATERAL_TILTS)
     approach_pitch_deg: float | None = None
+    #: a lateral palm beyond the block facing back towards the arm's base (no goal on the
+    #: base's side: controllers.reach.plan_coarse_reach)
+    approach_far_side: bool = False
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
     #: why each other block Select/Model could not model was not (each then counts as an
@@ -200,6 +203,11 @@ class Episode:
     #: forces held the weight by the 3-D model); the next pre-shapes take only grasps above it
     #: while any is left. None otherwise
     retry_floor: float | None = None
+    #: after the lateral pre-shape search passed over ``config.lateral_grasp_set_down_checks``
+    #: grasps that could not set the block down (fsm.handlers.set_down_pitch.SetDownGate): the
+    #: pitch (rad) of the lateral axis Coarse Reach takes at least; inf once no further pitch
+    #: had a path (the gate then takes poses unasked once spent); None otherwise
+    set_down_floor: float | None = None
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
     heights_searched: Any | None = None
@@ -241,6 +249,7 @@ class Episode:
         self.preshape_rolls = None
         self.regrasp_failure = None
         self.retry_floor = None
+        self.set_down_floor = None
         self.posture_mode = "hold"
         return self.record
 

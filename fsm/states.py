@@ -98,7 +98,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.COARSE_REACH,
             "a perceived polygon, centroid and yaw of the picked block",
             25.0,
-            (State.FINE_REACH,),
+            # again, pitched further down, where no grasp at this pitch can set the block down
+            (State.FINE_REACH, State.COARSE_REACH),
             # a lateral regrasp's, after looking again, when no palm pose is left
             (Failure.NO_COARSE_PATH, Failure.FINGERS_CANNOT_REACH, Failure.SLIPPED_DURING_LIFT),
         ),

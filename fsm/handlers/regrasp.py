@@ -10,7 +10,8 @@ from controllers.cspace import CollisionChecker
 from controllers.motion import reposition
 from controllers.palm_candidates import turn_about_vertical
 from fsm.context import Episode
-from fsm.handlers.common import block_site, lateral_preshape, slides
+from fsm.handlers.common import block_site, slides
+from fsm.handlers.lateral_preshape import lateral_preshape
 from fsm.handlers.look_again import look_again
 from fsm.states import Failure, State, Step, TaskFailedError
 
@@ -24,15 +25,14 @@ def regrasp_or_fail(
 ) -> Step:
     """After MAX_POSTURE_RETRIES the contacts stay out of reach (or, from Fine Reach, a
     fingertip was held off its surface point; from Grasp Object, a finger missed the block as
-    the hand closed): start again from Fine Reach with the hand
-    turned (top grasp: the wrist rolled by the next of ``config.regrasp_rolls``) or moved
-    (lateral: the pre-shape at the next palm pose beside the block,
-    :func:`fsm.handlers.common.lateral_preshape`), so the grasp controller starts from other
-    contacts; after ``config.max_regrasps``, or with no other palm pose or wrist turn to
-    regrasp from, fail with ``failure`` (the reason the regrasp was asked for) and the reason.
-    With ``look`` (Grasp Object's: the fingers have been on the block and may have pushed it) a
-    lateral regrasp first looks at the block again and goes by Coarse Reach
-    (:func:`fsm.handlers.look_again.look_again`)."""
+    the hand closed): start again from Fine Reach with the hand turned (top grasp: the wrist
+    rolled by the next of ``config.regrasp_rolls``) or moved (lateral: the pre-shape at the next
+    palm pose beside the block, :func:`fsm.handlers.lateral_preshape.lateral_preshape`), so the
+    grasp controller starts from other contacts; after ``config.max_regrasps``, or with no other
+    palm pose or wrist turn to regrasp from, fail with ``failure`` (the reason the regrasp was
+    asked for) and the reason. With ``look`` (Grasp Object's: the fingers have been on the block
+    and may have pushed it) a lateral regrasp first looks at the block again and goes by Coarse
+    Reach (:func:`fsm.handlers.look_again.look_again`)."""
     record = ep.record
     config = ep.config
     if reason is None:

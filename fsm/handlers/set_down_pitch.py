@@ -6,14 +6,15 @@ A level hand sets its block down with its wrist and forearm low along the radial
 neighbour standing up to 25 cm inward of the place point is in their way; pitched down
 (:data:`controllers.reach.LATERAL_TILTS`) the forearm passes above it. Where the goal's hand has
 no set-down, the pitched goals are tried in order and the first whose hand has one is taken.
-The palm-pose search then asks the same of each grasp it would take
-(:func:`set_down_gate`)."""
+The palm-pose search then asks the same of each grasp it would take (:class:`SetDownGate`); where
+it passes over ``config.lateral_grasp_set_down_checks`` grasps for want of one, Coarse Reach
+takes the next pitch (:func:`next_tilt`, :func:`pitched_at_least`)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,27 +70,72 @@ def grasp_sets_down(ep: Episode, qpos: NDArray[np.float64], check_lift: bool = T
     return plan.found
 
 
+@dataclass
+class SetDownGate:
+    """One pre-shape search's set-down gate: a palm pose whose grasp cannot set the block down
+    at the place point is passed over, the way an approach that collides is, until ``checks``
+    poses were passed over for it (``refused``; the gate is then ``spent``). After that the
+    approached poses are taken unasked (Deliver then names a missing set-down), or, when
+    ``strict``, passed over unasked too (Coarse Reach then pitches the lateral axis further
+    down, :func:`next_tilt`)."""
+
+    checks: int
+    strict: bool = False
+    refused: int = 0
+
+    @property
+    def spent(self) -> bool:
+        """Whether ``checks`` poses were passed over for want of a set-down."""
+        return self.refused >= self.checks
+
+    def wrap(
+        self,
+        plan_approach: Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None],
+        sets_down: Callable[[NDArray[np.float64]], bool],
+    ) -> Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None]:
+        """``plan_approach`` (a palm pose's approach: a plan, or None to pass the pose over)
+        gated by ``sets_down(qpos)`` (e.g. :func:`grasp_sets_down`, the hand at its contacts)."""
+
+        def gated(qpos: NDArray[np.float64], contacts: FingerContacts) -> ApproachPlan | None:
+            if self.strict and self.spent:
+                return None
+            plan = plan_approach(qpos, contacts)
+            if plan is None or self.spent or sets_down(qpos):
+                return plan
+            self.refused += 1
+            return None
+
+        return gated
+
+
 def set_down_gate(
     plan_approach: Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None],
     sets_down: Callable[[NDArray[np.float64]], bool],
     checks: int,
 ) -> Callable[[NDArray[np.float64], FingerContacts], ApproachPlan | None]:
-    """``plan_approach`` (a palm pose's approach: a plan, or None to pass the pose over) that
-    also passes over a pose whose grasp cannot set the block down at the place point
-    (``sets_down(qpos)``, e.g. :func:`grasp_sets_down`, the hand at its contacts), the way an
-    approach that collides is passed over. Once ``checks`` poses have been passed over for it,
-    the approached poses after are taken unasked (Deliver then names a missing set-down)."""
-    refused = 0
+    """``plan_approach`` gated by a fresh, not strict :class:`SetDownGate` of ``checks``."""
+    return SetDownGate(checks).wrap(plan_approach, sets_down)
 
-    def gated(qpos: NDArray[np.float64], contacts: FingerContacts) -> ApproachPlan | None:
-        nonlocal refused
-        plan = plan_approach(qpos, contacts)
-        if plan is None or refused >= checks or sets_down(qpos):
-            return plan
-        refused += 1
-        return None
 
-    return gated
+def next_tilt(pitch: float) -> float | None:
+    """The first of :data:`controllers.reach.LATERAL_TILTS` pitched further down than
+    ``pitch`` (rad), or None."""
+    return next((t for t in LATERAL_TILTS if t > pitch + PITCH_TOLERANCE), None)
+
+
+def pitched_at_least(ep: Episode, plan: CoarseReachPlan, floor: float) -> CoarseReachPlan | None:
+    """The first lateral coarse reach to a goal pitched ``floor`` (rad) or further down
+    (:data:`controllers.reach.LATERAL_TILTS`, in order) that has a path, chosen as ``plan``
+    was; None when none has."""
+    for tilt in LATERAL_TILTS:
+        if tilt < floor - PITCH_TOLERANCE:
+            continue
+        pitched = plan_coarse_reach(
+            ep.world, ep.target, approaches=("lateral",), model=ep.planning, lateral_tilt=tilt
+        )
+        if pitched.found:
+            return replace(pitched, choice=plan.choice)
+    return None
 
 
 def pitch_for_set_down(ep: Episode, plan: CoarseReachPlan) -> tuple[CoarseReachPlan, str]:

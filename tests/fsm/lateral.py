@@ -21,6 +21,7 @@ BALANCED_SQUEEZE = replace(
     DEFAULT_CONFIG,
     lateral_holding_forces=False,
     lateral_reserve_first=False,
+    lateral_reserve_before_bands=False,
     lateral_retry_by_reserve=False,
 )
 
