@@ -167,10 +167,16 @@ def approach_origin(
     the base's side, else the base mirrored through the block's centre (a palm beyond the
     block, facing back towards the base: :func:`controllers.reach.plan_coarse_reach`)."""
     base = np.asarray(base_xy, dtype=float)
-    centre = np.asarray(target.position_xy, dtype=float)
-    if float(coarse_rotation[:2, 2] @ (centre - base)) >= 0.0:
+    if from_base_side(base, target, coarse_rotation):
         return base
-    return 2.0 * centre - base
+    return 2.0 * np.asarray(target.position_xy, dtype=float) - base
+
+
+def from_base_side(base_xy: ArrayLike, target: ReachTarget, rotation: NDArray[np.float64]) -> bool:
+    """Whether a lateral palm of ``rotation`` (approach axis = its z column) faces the block
+    from the arm base's side (False: from its far side, facing back towards the base)."""
+    centre = np.asarray(target.position_xy, dtype=float)
+    return float(rotation[:2, 2] @ (centre - np.asarray(base_xy, dtype=float))) >= 0.0
 
 
 def turn_about_vertical(angle: float) -> NDArray[np.float64]:
@@ -210,7 +216,7 @@ def lateral_poses(
     base = np.asarray(robot_base_xy(world))
     centre = np.array([*target.position_xy, target.top_z - LATERAL_DEPTH])
     # from the base's side, or (-1) from the block's far side facing back towards the base
-    side = 1.0 if float(coarse_rotation[:2, 2] @ (centre[:2] - base)) >= 0.0 else -1.0
+    side = 1.0 if from_base_side(base, target, coarse_rotation) else -1.0
     axis = side * np.array([*(centre[:2] - base), 0.0])
     axis /= np.linalg.norm(axis)
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from controllers.arm_path import START_IN_COLLISION, ArmPath, execute_path
 from controllers.cspace import CollisionChecker
-from controllers.palm_candidates import approach_origin, robot_base_xy
+from controllers.palm_candidates import from_base_side, robot_base_xy
 from controllers.reach import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
 from fsm.context import Episode
 from fsm.handlers.common import rise_clear
@@ -118,8 +118,7 @@ def _set_down_gate(ep: Episode, pitch: float | None) -> SetDownGate | None:
 
 def _far_side(ep: Episode, rotation: NDArray[np.float64]) -> bool:
     """Whether a lateral palm of ``rotation`` faces the block from its far side."""
-    base = robot_base_xy(ep.world)
-    return not np.array_equal(approach_origin(base, ep.target, rotation), np.asarray(base))
+    return not from_base_side(robot_base_xy(ep.world), ep.target, rotation)
 
 
 def _start_in_collision(paths: Iterable[ArmPath]) -> bool:
