@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,6 +53,10 @@ MAX_JOINT_SPEED = 0.8
 
 #: :class:`ArmPath` ``reason`` of a plan whose start posture is within the clearance of something.
 START_IN_COLLISION = "the start posture is in collision"
+#: ... of a plan whose wrist roll cannot turn to the goal's where it starts.
+ROLL_AT_START_COLLIDES = "turning the wrist roll at the start collides"
+#: The end of the reason of a path whose roll turned above its start (:func:`roll_turned_above`).
+ROLL_TURNED_ABOVE = "the wrist roll turned above the start"
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,12 +157,15 @@ def plan_arm_path(
     q_goal: ArrayLike,
     *,
     resolution: int = DEFAULT_RESOLUTION,
+    roll_at_goal: bool = False,
 ) -> ArmPath:
     """Harmonic path (Connolly & Grupen) from arm posture ``q_start`` (5,) to ``q_goal`` (5,).
 
-    The wrist roll turns to ``q_goal``'s at the start; the other four joints follow the
-    gradient of the harmonic function of a ``resolution^4`` grid. Every returned path has been
-    checked collision-free posture by posture (``VERIFY_STEP``) with MuJoCo.
+    The wrist roll turns to ``q_goal``'s at the start (``roll_at_goal``: at the goal, the other
+    joints there; only for an empty hand, whose roll tilts nothing it holds); the other four
+    joints follow the gradient of the harmonic function of a ``resolution^4`` grid. Every
+    returned path has been checked collision-free posture by posture (``VERIFY_STEP``) with
+    MuJoCo.
     """
     q_start = np.asarray(q_start, dtype=float)
     q_goal = np.asarray(q_goal, dtype=float)
@@ -165,7 +173,7 @@ def plan_arm_path(
         raise ReachError(f"grid resolution must be >= 3 nodes per axis, got {resolution}")
     t0 = time.perf_counter()
     spec = _grid_box(checker, np.stack([q_start, q_goal]), resolution)
-    roll = q_goal[ROLL]
+    roll = q_start[ROLL] if roll_at_goal else q_goal[ROLL]
     nodes = spec.node_configs()
     configs = np.column_stack([nodes, np.full(len(nodes), roll)])
     free = ~checker.scan(configs).collides.reshape(spec.shape)
@@ -184,15 +192,19 @@ def plan_arm_path(
         )
 
     rolled = np.array([*q_start[:ROLL], roll])
+    arrived = np.array([*q_goal[:ROLL], roll])  # the goal before the roll turns there
     lead = np.stack([q_start, rolled])
+    tail = np.stack([arrived, q_goal])
     if checker.collides(q_start):
         return fail(START_IN_COLLISION)
     if first_collision(checker, lead) is not None:
-        return fail("turning the wrist roll at the start collides")
+        return fail(ROLL_AT_START_COLLIDES)
     if checker.collides(q_goal):
         return fail("the goal posture is in collision")
+    if first_collision(checker, tail) is not None:
+        return fail("turning the wrist roll at the goal collides")
     goal_mask = np.zeros(spec.shape, dtype=bool)
-    for c in _linked_nodes(checker, spec, free, q_goal, roll):
+    for c in _linked_nodes(checker, spec, free, arrived, roll):
         goal_mask[c] = True
     if not goal_mask.any():
         return fail("no grid node near the goal connects to it without collision")
@@ -210,7 +222,7 @@ def plan_arm_path(
             return fail(f"gradient path failed: {hp.reason}", repairs)
         q4 = spec.to_config(hp.points)
         middle = np.column_stack([q4, np.full(len(q4), roll)])
-        path = np.vstack([lead, middle, q_goal[None]])
+        path = np.vstack([lead, middle, tail])
         bad = first_collision(checker, path)
         if bad is None:
             return ArmPath(
@@ -235,6 +247,52 @@ def plan_arm_path(
         free[node] = False
         goal_mask &= free
         repairs += 1
+
+
+def risen_postures(
+    checker: CollisionChecker, q_from: ArrayLike, *, step: float, max_rise: float
+) -> Iterator[NDArray[np.float64]]:
+    """The arm postures with the palm risen straight up from where ``q_from`` puts it,
+    orientation kept, ``step`` (m) at a time up to ``max_rise`` (m), each IK started from the
+    one before; the walk ends where a rise has no IK or collides by ``checker``."""
+    q = np.asarray(q_from, dtype=float)
+    p, R = checker.palm_pose(q)
+    for k in range(1, round(max_rise / step) + 1):
+        ik = checker.solve_ik(p + np.array([0.0, 0.0, k * step]), R, q)
+        if not ik.found or first_collision(checker, np.stack([q, ik.q])) is not None:
+            return
+        q = ik.q
+        yield q
+
+
+def roll_turned_above(
+    checker: CollisionChecker,
+    q_start: ArrayLike,
+    q_goal: ArrayLike,
+    *,
+    step: float,
+    max_rise: float,
+    resolution: int = DEFAULT_RESOLUTION,
+) -> ArmPath | None:
+    """A collision-free path from ``q_start`` to ``q_goal`` where the wrist roll cannot
+    turn at the start (:data:`ROLL_AT_START_COLLIDES`: the fingers, or a held block, would sweep
+    through a neighbour): the palm rises straight up, orientation kept, ``step`` (m) at a time,
+    to the first height where the roll turns to ``q_goal``'s clear of everything and a harmonic
+    path leads on from there (:func:`plan_arm_path`, the roll turning at its start as ever;
+    the rise comes first in the returned path, whose reason says so). None when none is found
+    within ``max_rise`` (m), or a rise collides or has no IK."""
+    q_goal = np.asarray(q_goal, dtype=float)
+    risen = [np.asarray(q_start, dtype=float)]
+    for q in risen_postures(checker, q_start, step=step, max_rise=max_rise):
+        risen.append(q)
+        turned = np.array([*q[:ROLL], q_goal[ROLL]])
+        if first_collision(checker, np.stack([q, turned])) is not None:
+            continue
+        on = plan_arm_path(checker, q, q_goal, resolution=resolution)
+        if on.found:
+            path = dedupe_path(np.vstack([np.stack(risen), on.path]))
+            return replace(on, path=path, reason=f"{on.reason}, {ROLL_TURNED_ABOVE}")
+    return None
 
 
 def dedupe_path(path: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -19,10 +19,13 @@ from scipy.optimize import brentq
 
 from controllers.arm_path import (
     DEFAULT_RESOLUTION,
+    ROLL_AT_START_COLLIDES,
     ArmPath,
     dedupe_path,
     first_collision,
     plan_arm_path,
+    risen_postures,
+    roll_turned_above,
 )
 from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult, rotation_error
 from controllers.errors import ReachError
@@ -156,14 +159,8 @@ def rise_until_clear(
     """Postures of the palm risen straight up from ``q_from`` (k, 5), ending at the first one
     clear of everything by ``checker``'s clearance, each rise collision-free by ``tight``'s;
     None when none is found within :data:`MAX_EXTRA_RISE` (or the arm cannot rise)."""
-    p, R = checker.palm_pose(q_from)
-    q = q_from
     risen = []
-    for k in range(1, round(MAX_EXTRA_RISE / RISE_STEP) + 1):
-        ik = checker.solve_ik(p + np.array([0.0, 0.0, k * RISE_STEP]), R, q)
-        if not ik.found or first_collision(tight, np.stack([q, ik.q])) is not None:
-            return None
-        q = ik.q
+    for q in risen_postures(tight, q_from, step=RISE_STEP, max_rise=MAX_EXTRA_RISE):
         risen.append(q)
         if not checker.collides(q):
             return np.stack(risen)
@@ -317,6 +314,17 @@ def plan_delivery(
         # a set-down posture the transit cannot reach (e.g. its wrist roll cannot turn beside
         # a tall neighbour at the start) gives way to the next one
         transit = plan_arm_path(checker, start, set_down[0], resolution=resolution)
+        if not transit.found and transit.reason == ROLL_AT_START_COLLIDES:
+            # the roll turns as ever at the transit's start, only higher up
+            above = roll_turned_above(
+                checker,
+                start,
+                set_down[0],
+                step=RISE_STEP,
+                max_rise=MAX_EXTRA_RISE,
+                resolution=resolution,
+            )
+            transit = above or transit
         if transit.found:
             break
         first_failure = first_failure or fail(f"transit: {transit.reason}", transit)

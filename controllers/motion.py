@@ -17,8 +17,15 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import execute_path, first_collision, plan_arm_path
+from controllers.arm_path import (
+    ROLL_AT_START_COLLIDES,
+    execute_path,
+    first_collision,
+    plan_arm_path,
+    roll_turned_above,
+)
 from controllers.cspace import CollisionChecker
+from controllers.delivery import MAX_EXTRA_RISE, RISE_STEP
 from controllers.errors import ReachError
 from controllers.fine_reach import project_to_surface
 from controllers.finger_assignment import FingerContacts
@@ -243,9 +250,11 @@ def move_backed_out(site: BlockSite, arm_q: NDArray[np.float64]) -> str:
     """Move the arm, the hand keeping its shape, from where it is to the backed-out posture
     ``arm_q``, and say how: ``"straight"``, in a straight joint-space line, when every posture
     on it keeps ``direct_clearance`` from the perceived world; else ``"harmonic"``, on a
-    collision-free harmonic path (:func:`controllers.arm_path.plan_arm_path`); else
-    ``"unplanned"`` (e.g. the backed-out hand already grazes a neighbour): straight there
-    anyway."""
+    collision-free harmonic path (:func:`controllers.arm_path.plan_arm_path`; where turning
+    the wrist roll first would sweep the hand through a neighbour, the roll turns at the goal,
+    the empty hand tilting nothing, or above the start,
+    :func:`controllers.arm_path.roll_turned_above`); else ``"unplanned"`` (e.g. the backed-out
+    hand already grazes a neighbour): straight there anyway."""
     world, p = site.world, site.params
     start = world.arm_qpos()
     direct = np.stack([start, arm_q])
@@ -259,6 +268,16 @@ def move_backed_out(site: BlockSite, arm_q: NDArray[np.float64]) -> str:
         world, model=site.planning, hand_q=world.hand_qpos(), clearance=p.reposition_clearance
     )
     path = plan_arm_path(mover, start, arm_q)
+    if not path.found and path.reason == ROLL_AT_START_COLLIDES:
+        # the hand is empty: its roll may turn at the goal, or else above the start
+        at_goal = plan_arm_path(mover, start, arm_q, roll_at_goal=True)
+        if at_goal.found:
+            execute_path(world, at_goal.path, settle=0.2)
+            return "harmonic, the wrist roll turned at the goal"
+        above = roll_turned_above(mover, start, arm_q, step=RISE_STEP, max_rise=MAX_EXTRA_RISE)
+        if above is not None:
+            execute_path(world, above.path, settle=0.2)
+            return "harmonic, the wrist roll turned above"
     if path.found:
         execute_path(world, path.path, settle=0.2)
         return "harmonic"

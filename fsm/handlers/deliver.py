@@ -7,6 +7,7 @@ from collections import deque
 
 import numpy as np
 
+from controllers.arm_path import ROLL_TURNED_ABOVE
 from controllers.cspace import CollisionChecker
 from controllers.delivery import plan_delivery
 from controllers.grip import CONTROL_PERIOD, release
@@ -258,7 +259,13 @@ def deliver(ep: Episode) -> Step:
         )
     record.set_down = plan.set_down
     lowering = f" ({record.set_down})" if record.set_down else ""
-    log(State.DELIVER.value, State.DELIVER.value, f"carried to the place point; lowering{lowering}")
+    above = plan.transit is not None and plan.transit.reason.endswith(ROLL_TURNED_ABOVE)
+    carried = f" ({ROLL_TURNED_ABOVE}: it would collide at the lift's top)" if above else ""
+    log(
+        State.DELIVER.value,
+        State.DELIVER.value,
+        f"carried to the place point{carried}; lowering{lowering}",
+    )
     down = lower_until_supported(world, checker, ep.grip, ep.empty_hand_force)
     if not down.supported:
         raise TaskFailedError(

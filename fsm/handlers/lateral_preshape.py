@@ -29,6 +29,7 @@ from controllers.palm_candidates import (
     side_contacts,
 )
 from controllers.palm_pose import PalmPoseResult, search_poses
+from fsm.config import TaskConfig
 from fsm.context import Episode
 from fsm.handlers.common import (
     approach_from,
@@ -57,9 +58,9 @@ class PoseGrasps:
     gate: SetDownGate | None = None
     #: each grasp's friction reserve by the 3-D model (N, by the grasp's id), solved once
     reserves: dict[int, float] = field(default_factory=dict)
-    #: the grasps a search pass takes: those that keep a reserve (True), those that do not
-    #: (False), or all (None)
-    holds: bool | None = None
+    #: the grasps a search pass takes: those whose reserve (N) lies in [low, high), or all
+    #: (None)
+    reserve_range: tuple[float, float] | None = None
 
 
 def lateral_preshape(ep: Episode, skip: int = 0, gate: SetDownGate | None = None) -> str | None:
@@ -130,16 +131,26 @@ def _gated_preshapes(ep: Episode, skip: int, memo: PoseGrasps) -> str | None:
         bands.append((False, (SUCCESS_THRESHOLD, config.lateral_gate_for(4))))
         if config.lateral_three_contacts:
             bands.append((True, (SUCCESS_THRESHOLD, config.lateral_gate_for(3))))
-    # the grasps that keep a friction reserve by the 3-D model, in every band, before any
-    # that does not (config.lateral_reserve_before_bands)
-    for holds in (True, False) if config.lateral_reserve_before_bands else (None,):
-        memo.holds = holds
+    for reserves in _reserve_tiers(config):
+        memo.reserve_range = reserves
         for three, band in bands:
             done, skipped = _sampled_preshape(ep, skip, band, memo, three)
             if done is not None:
                 return done
             skip -= skipped
     return None
+
+
+def _reserve_tiers(config: TaskConfig) -> list[tuple[float, float] | None]:
+    """The search passes of :func:`_gated_preshapes` by the grasps' friction reserve by the 3-D
+    model (N, [low, high)): with ``config.lateral_reserve_before_bands``, first the grasps that
+    keep ``config.lateral_reserve_margin`` or more, then those that keep less but some, then
+    the rest, each pass through every band; without it one pass takes them all."""
+    if not config.lateral_reserve_before_bands:
+        return [None]
+    margin = config.lateral_reserve_margin
+    tiers: list[tuple[float, float] | None] = [(margin, np.inf)] if margin > 0.0 else []
+    return [*tiers, (0.0, margin if margin > 0.0 else np.inf), (-np.inf, 0.0)]
 
 
 def _sampled_preshape(
@@ -205,12 +216,13 @@ def _sampled_poses(
     by_reserve = ep.config.lateral_reserve_order
     first = ep.config.lateral_reserve_first and not by_reserve
     reserves = memo.reserves
-    if by_reserve or first or ep.retry_floor is not None or memo.holds is not None:
+    if by_reserve or first or ep.retry_floor is not None or memo.reserve_range is not None:
         for _, grasp in kept:
             if id(grasp) not in reserves:
                 reserves[id(grasp)] = grasp_reserve(ep, grasp)
-    if memo.holds is not None:
-        kept = [(p, g) for p, g in kept if (reserves[id(g)] >= 0.0) == memo.holds]
+    if memo.reserve_range is not None:
+        low, high = memo.reserve_range
+        kept = [(p, g) for p, g in kept if low <= reserves[id(g)] < high]
     if ep.retry_floor is not None:
         kept = [(p, g) for p, g in kept if reserves[id(g)] > ep.retry_floor]
     if by_reserve:

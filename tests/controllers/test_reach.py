@@ -137,6 +137,30 @@ def test_blocked_goal_and_bad_input_are_reported(clutter3):
         plan_arm_path(checker, start, plan.goal.q, resolution=2)
 
 
+def test_the_wrist_roll_turns_at_the_goal_when_asked_and_the_path_stays_clear(clutter3):
+    """plan_arm_path's ``roll_at_goal`` (an empty hand's reposition): the roll keeps its start
+    value along the whole path and turns only on the last segment, at the goal's other joints;
+    by default it turns first. Both paths are collision-free by the independent fine check."""
+    world, _, plan = clutter3
+    world.reset()
+    checker = CollisionChecker(world, hand_q=plan.hand_q)
+    start = world.arm_qpos()
+    goal = plan.goal.q.copy()
+    goal[4] = start[4] + 0.8
+    target_body = world.block_body_id(world.scene.target)
+    first = plan_arm_path(checker, start, goal)
+    last = plan_arm_path(checker, start, goal, roll_at_goal=True)
+    assert first.found and last.found, (first.reason, last.reason)
+    for res in (first, last):
+        np.testing.assert_allclose(res.path[0], start)
+        np.testing.assert_allclose(res.path[-1], goal)
+        for q in densify(res.path, CHECK_STEP):
+            assert forbidden_contacts(world, q, plan.hand_q, target_body) == [], q
+    np.testing.assert_allclose(first.path[1:, 4], goal[4])
+    np.testing.assert_allclose(last.path[:-1, 4], start[4])
+    np.testing.assert_allclose(last.path[-2, :4], goal[:4])
+
+
 def test_far_target_plans_both_approaches_and_picks_the_shorter():
     scene = load_scene("single_square")
     block = dataclasses.replace(scene.blocks[0], position=(0.3, 0.1))

@@ -26,6 +26,13 @@ BALANCED_SQUEEZE = replace(
 )
 
 
+#: The pre-shape search before the reserve margin (``lateral_reserve_margin`` 0, issue 23,
+#: thirty-second session): the grasps that keep any friction reserve first. The episodes
+#: written to show what follows a grasp that keeps too little (a slip at the lift, the regrasp
+#: after it) run with it: with the margin their first grasp is another, and holds.
+NO_MARGIN = replace(DEFAULT_CONFIG, lateral_reserve_margin=0.0)
+
+
 def lateral_episode(
     out: Path, scene: str, seed: int, config: TaskConfig = DEFAULT_CONFIG
 ) -> EpisodeResult:
@@ -44,16 +51,20 @@ def lateral_episode(
     return run_episode(options)
 
 
-def shared_lateral_episode(tmp_path_factory, scene: str, seed: int) -> EpisodeResult:
-    """:func:`lateral_episode` with the default config, run once per test session for every test
-    that reads it (the workers of ``pytest -n`` share it through a lock and the pickled result
-    in the session's folder): tests of different features that start from the same default
-    episode do not each run it again."""
-    name = f"lateral-{scene}-{seed}"
+def shared_lateral_episode(
+    tmp_path_factory, scene: str, seed: int, config: TaskConfig = DEFAULT_CONFIG, label: str = ""
+) -> EpisodeResult:
+    """:func:`lateral_episode` (the default config, or ``config`` named by ``label``), run once
+    per test session for every test that reads it (the workers of ``pytest -n`` share it
+    through a lock and the pickled result in the session's folder): tests of different features
+    that start from the same episode do not each run it again."""
+    if (config == DEFAULT_CONFIG) == bool(label):
+        raise ValueError("a shared episode's config other than the default needs a label")
+    name = f"lateral-{scene}-{seed}" + (f"-{label}" if label else "")
     with session_lock(tmp_path_factory, name) as root:
         saved = root / f"{name}.pickle"
         if not saved.is_file():
-            result = lateral_episode(root / name, scene, seed)
+            result = lateral_episode(root / name, scene, seed, config)
             partial = saved.with_suffix(".partial")
             partial.write_bytes(pickle.dumps(result))
             partial.replace(saved)

@@ -1,6 +1,8 @@
 """What a lateral grasp that loses its block at the lift leads to (issue 23), on random scene 69
-(two blocks), whose first lateral grasp of the irregular pentagon keeps 0.32 N of friction in
-reserve by the 3-D model and lets the block slip out as the arm lifts it:
+(two blocks), whose first lateral grasp of the irregular pentagon, by the search before the
+reserve margin (``NO_MARGIN``; with the margin the first grasp keeps more, and holds,
+``tests/fsm/test_reserve_margin_episode.py``), keeps 0.32 N of friction in reserve by the 3-D
+model and lets the block slip out as the arm lifts it:
 
 - the regrasp after the slip takes only palm poses whose grasp keeps more reserve than the one
   that slipped (``TaskConfig.lateral_retry_by_reserve``, the default). Without it the next pose
@@ -20,14 +22,15 @@ from pathlib import Path
 
 import pytest
 
-from fsm.config import DEFAULT_CONFIG, TaskConfig
+from fsm.config import TaskConfig
 from fsm.machine import EpisodeResult
 from fsm.states import State
-from tests.fsm.lateral import lateral_episode, shared_lateral_episode
+from tests.fsm.lateral import NO_MARGIN, lateral_episode, shared_lateral_episode
 
 SEED = 69
-#: the regrasp after a slip blind to the reserve: the next palm pose in order
-BLIND = replace(DEFAULT_CONFIG, lateral_retry_by_reserve=False)
+#: the regrasp after a slip blind to the reserve: the next palm pose in order (both from the
+#: search before the reserve margin, whose first grasp slips)
+BLIND = replace(NO_MARGIN, lateral_retry_by_reserve=False)
 
 
 @pytest.mark.parametrize("height", [-0.01, 0.05, float("nan")])
@@ -78,7 +81,7 @@ def test_a_lift_failure_is_regrasped_with_more_reserve_or_caught_by_a_trial_lift
     assert not blind.success
     assert blind.failure == "block slipped during lift", blind.failure
 
-    result = shared_lateral_episode(tmp_path_factory, "random", SEED)
+    result = shared_lateral_episode(tmp_path_factory, "random", SEED, NO_MARGIN, "no-margin")
     (slip,) = _slips(result)
     assert slip.startswith("slipped at the lift"), slip
     reach = [v.reason for v in result.visits if v.state == State.COARSE_REACH.value]

@@ -20,7 +20,7 @@ from fsm.context import EpisodeOptions
 from fsm.layout import episode_scene
 from fsm.machine import run_episode
 from fsm.states import State, allowed
-from tests.fsm.lateral import BALANCED_SQUEEZE, lateral_episode
+from tests.fsm.lateral import BALANCED_SQUEEZE, NO_MARGIN, lateral_episode
 
 #: The controller the episodes run (the shipped default).
 CONTROLLER = "pi"
@@ -230,7 +230,8 @@ def test_a_lateral_regrasp_after_a_finger_missed_looks_at_the_block_again(tmp_pa
     """Random scene 93 (two blocks), --approach lateral, the pre-shape's reposition as before
     issue 23's twenty-fifth session (``MotionParams.backin_as_clear`` off: the move to the
     pre-shape pose swept the fingers past the block; with it on the first grasp holds and this
-    recovery never runs): the thumb misses the irregular hexagon as the hand closes, and the
+    recovery never runs), the search before the reserve margin (``NO_MARGIN``: with it the
+    first grasp is another): the thumb misses the irregular hexagon as the hand closes, and the
     fingers that touched it have pushed it centimetres from where Select/Model saw it (a
     regrasp planned on the old model missed it four times over). The hand lets go, the arm
     parks, the camera models the block where it now stands, Coarse Reach takes the next palm
@@ -243,9 +244,7 @@ def test_a_lateral_regrasp_after_a_finger_missed_looks_at_the_block_again(tmp_pa
         approach="lateral",
         out=tmp_path,
         record=False,
-        config=replace(
-            DEFAULT_CONFIG, motion=replace(DEFAULT_CONFIG.motion, backin_as_clear=False)
-        ),
+        config=replace(NO_MARGIN, motion=replace(NO_MARGIN.motion, backin_as_clear=False)),
     )
     result = run_episode(options)
     log = [f"{v.state} -> {v.next}: {v.reason}" for v in result.visits]

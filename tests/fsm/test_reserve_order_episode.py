@@ -1,8 +1,9 @@
 """The sampled lateral pre-shape's palm poses in the order of their grasp's friction reserve
 (issue 23; ``TaskConfig.lateral_reserve_order``, off by default, measured in
-docs/task_cycle.md): on random scene 69 (one block) the default order takes a grasp with a
-reserve of about 0.3 N first, which slips at the lift; by the reserve's order the first grasp
-keeps more to spare, holds, and the block is delivered, judged physically (fsm.judge)."""
+docs/task_cycle.md): on random scene 69 (one block), the search as before the reserve margin
+(``NO_MARGIN``), the default order takes a grasp with a reserve of about 0.3 N first, which
+slips at the lift; by the reserve's order the first grasp keeps more to spare, holds, and the
+block is delivered, judged physically (fsm.judge)."""
 
 from __future__ import annotations
 
@@ -11,9 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from fsm.config import DEFAULT_CONFIG
 from fsm.states import State
-from tests.fsm.lateral import lateral_episode, shared_lateral_episode
+from tests.fsm.lateral import NO_MARGIN, lateral_episode, shared_lateral_episode
 
 SEED = 69
 
@@ -30,9 +30,9 @@ def test_the_pose_with_the_most_friction_to_spare_is_taken_first_and_holds(
 ) -> None:
     """By the reserve's order the first grasp's reserve is above the default order's first, its
     Coarse Reach log names it, and the block is delivered at that first grasp."""
-    default = shared_lateral_episode(tmp_path_factory, "random", SEED)
+    default = shared_lateral_episode(tmp_path_factory, "random", SEED, NO_MARGIN, "no-margin")
     ordered = lateral_episode(
-        tmp_path / "ordered", "random", SEED, replace(DEFAULT_CONFIG, lateral_reserve_order=True)
+        tmp_path / "ordered", "random", SEED, replace(NO_MARGIN, lateral_reserve_order=True)
     )
     assert _first_reserve(ordered) > _first_reserve(default)
     reach = next(v.reason for v in ordered.visits if v.state == State.COARSE_REACH.value)
