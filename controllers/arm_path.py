@@ -201,7 +201,7 @@ def plan_arm_path(
         return fail(ROLL_AT_START_COLLIDES)
     if checker.collides(q_goal):
         return fail("the goal posture is in collision")
-    if first_collision(checker, tail) is not None:
+    if roll_at_goal and first_collision(checker, tail) is not None:
         return fail("turning the wrist roll at the goal collides")
     goal_mask = np.zeros(spec.shape, dtype=bool)
     for c in _linked_nodes(checker, spec, free, arrived, roll):
