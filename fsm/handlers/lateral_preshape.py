@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import partial
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -131,8 +132,8 @@ def _gated_preshapes(ep: Episode, skip: int, memo: PoseGrasps) -> str | None:
         bands.append((False, (SUCCESS_THRESHOLD, config.lateral_gate_for(4))))
         if config.lateral_three_contacts:
             bands.append((True, (SUCCESS_THRESHOLD, config.lateral_gate_for(3))))
-    for reserves in _reserve_tiers(config):
-        memo.reserve_range = reserves
+    for tier in _reserve_tiers(config):
+        memo.reserve_range = tier
         for three, band in bands:
             done, skipped = _sampled_preshape(ep, skip, band, memo, three)
             if done is not None:
@@ -149,8 +150,8 @@ def _reserve_tiers(config: TaskConfig) -> list[tuple[float, float] | None]:
     if not config.lateral_reserve_before_bands:
         return [None]
     margin = config.lateral_reserve_margin
-    tiers: list[tuple[float, float] | None] = [(margin, np.inf)] if margin > 0.0 else []
-    return [*tiers, (0.0, margin if margin > 0.0 else np.inf), (-np.inf, 0.0)]
+    edges = [np.inf, margin, 0.0, -np.inf] if margin > 0.0 else [np.inf, 0.0, -np.inf]
+    return [(low, high) for high, low in pairwise(edges)]
 
 
 def _sampled_preshape(
