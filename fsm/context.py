@@ -91,6 +91,9 @@ class CycleRecord:
     #: a lateral palm beyond the block facing back towards the arm's base (no goal on the
     #: base's side: controllers.reach.plan_coarse_reach)
     approach_far_side: bool = False
+    #: under --approach auto, the approach given up because its grasp proved unreachable at its
+    #: end, and why ("top: contact unreachable ...": fsm.handlers.other_approach); "" otherwise
+    approach_given_up: str = ""
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
     #: why each other block Select/Model could not model was not (each then counts as an
@@ -208,6 +211,9 @@ class Episode:
     #: pitch (rad) of the lateral axis Coarse Reach takes at least; inf once no further pitch
     #: had a path (the gate then takes poses unasked once spent); None otherwise
     set_down_floor: float | None = None
+    #: under --approach auto, the approaches given up in this cycle because their grasp proved
+    #: unreachable at their end (fsm.handlers.other_approach); Coarse Reach plans the others
+    closed_approaches: tuple[str, ...] = ()
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
     heights_searched: Any | None = None
@@ -250,6 +256,7 @@ class Episode:
         self.regrasp_failure = None
         self.retry_floor = None
         self.set_down_floor = None
+        self.closed_approaches = ()
         self.posture_mode = "hold"
         return self.record
 

@@ -107,7 +107,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.FINE_REACH,
             "the hand is near the block in its pre-shape, top or lateral",
             16.0,  # the reach takes 2-5 s; a finger held off adds the regrasp's repositioning
-            (State.POSTURE_CONTROL, State.FINE_REACH),
+            # back to Coarse Reach: under auto, the other approach (fsm.handlers.other_approach)
+            (State.POSTURE_CONTROL, State.FINE_REACH, State.COARSE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
         StateSpec(
@@ -115,7 +116,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             "fingertips near the block's surface (after Fine Reach) or contacts to make reachable "
             "(from Wrench Closure)",
             12.0,  # a repositioning: retract, back out, move, pre-shape, approach (up to ~8 s)
-            (State.FINE_REACH, State.WRENCH_CLOSURE),
+            # back to Coarse Reach: under auto, the other approach (fsm.handlers.other_approach)
+            (State.FINE_REACH, State.WRENCH_CLOSURE, State.COARSE_REACH),
             (Failure.CONTACT_UNREACHABLE,),
         ),
         StateSpec(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,8 +33,12 @@ def coarse_reach(ep: Episode) -> Step:
     (:func:`fsm.handlers.lateral_preshape.lateral_preshape`). Where that search passes over
     ``config.lateral_grasp_set_down_checks`` grasps that cannot set the block down at the place
     point and a lateral axis pitched further down is left (:data:`LATERAL_TILTS`), Coarse Reach
-    is entered again for that pitch (``ep.set_down_floor``)."""
+    is entered again for that pitch (``ep.set_down_floor``). Under ``auto``, an approach given
+    up because its grasp was unreachable at its end (:mod:`fsm.handlers.other_approach`) is not
+    planned again, and the log says so."""
     approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
+    # under auto, an approach whose grasp proved unreachable at its end is not planned again
+    approaches = tuple(a for a in approaches if a not in ep.closed_approaches)
     plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     risen = ""
     if not plan.found and _start_in_collision(plan.candidates.values()):
@@ -44,6 +49,10 @@ def coarse_reach(ep: Episode) -> Step:
             plan = plan_coarse_reach(ep.world, ep.target, approaches=approaches, model=ep.planning)
     if not plan.found:
         raise TaskFailedError(Failure.NO_COARSE_PATH, plan.reason)
+    if ep.closed_approaches:
+        closed = " and ".join(ep.closed_approaches)
+        why = f"the only approach left: the {closed} approach's grasp was unreachable at its end"
+        plan = replace(plan, choice=why)
     for_set_down = ""
     floor = ep.set_down_floor
     if plan.approach == "lateral" and floor is not None and math.isfinite(floor):

@@ -75,12 +75,11 @@ def _seen_again(ep: Episode) -> tuple[ObjectModel, float] | str:
     return model, moved
 
 
-def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp") -> Step:
-    """Release, retreat, park, look again and go back to Coarse Reach, whose lateral pre-shape
-    is then taken at the next palm pose (``skip`` = the regrasps so far, this one counted).
-    ``reason`` (why the grasp failed) and ``failure`` are what the episode fails with when the
-    block is not seen standing as modelled, or (in Coarse Reach) no palm pose is left;
-    ``label`` names the retry in the transition log."""
+def release_and_look(ep: Episode, reason: str, failure: Failure) -> tuple[str, float]:
+    """Let go of the block (if held), retreat, park the arm (:func:`park_arm`) and model the
+    picked block again from a new overhead image (adopted as Select/Model adopts one). Returns
+    what the park did, for the log, and how far (m) the block is from where it was modelled;
+    fails with ``failure`` and ``reason`` when the block is not seen standing as modelled."""
     world = ep.world
     if ep.grip is not None:
         release(world, ep.grip)
@@ -92,6 +91,16 @@ def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp
     model, moved = seen
     adopt_model(ep, ep.target_name, model)
     log_view(ep, model)
+    return parked, moved
+
+
+def look_again(ep: Episode, reason: str, failure: Failure, label: str = "regrasp") -> Step:
+    """Release, retreat, park, look again and go back to Coarse Reach, whose lateral pre-shape
+    is then taken at the next palm pose (``skip`` = the regrasps so far, this one counted).
+    ``reason`` (why the grasp failed) and ``failure`` are what the episode fails with when the
+    block is not seen standing as modelled, or (in Coarse Reach) no palm pose is left;
+    ``label`` names the retry in the transition log."""
+    parked, moved = release_and_look(ep, reason, failure)
     ep.record.regrasps += 1
     ep.record.posture_retries = 0
     ep.regrasp_failure = (failure, reason)

@@ -13,6 +13,7 @@ from fsm.context import Episode
 from fsm.handlers.common import block_site, slides
 from fsm.handlers.lateral_preshape import lateral_preshape
 from fsm.handlers.look_again import look_again
+from fsm.handlers.other_approach import other_approach_left, take_other_approach
 from fsm.states import Failure, State, Step, TaskFailedError
 
 
@@ -30,15 +31,18 @@ def regrasp_or_fail(
     palm pose beside the block, :func:`fsm.handlers.lateral_preshape.lateral_preshape`), so the
     grasp controller starts from other contacts; after ``config.max_regrasps``, or with no other
     palm pose or wrist turn to regrasp from, fail with ``failure`` (the reason the regrasp was
-    asked for) and the reason. With ``look`` (Grasp Object's: the fingers have been on the block
-    and may have pushed it) a lateral regrasp first looks at the block again and goes by Coarse
-    Reach (:func:`fsm.handlers.look_again.look_again`)."""
+    asked for) and the reason, except that under ``--approach auto`` a top grasp unreachable
+    at its end gives way to the lateral approach (:mod:`fsm.handlers.other_approach`).
+    With ``look`` (Grasp Object's: the fingers have been on the block and may have pushed it) a
+    lateral regrasp first looks at the block again and goes by Coarse Reach
+    (:func:`fsm.handlers.look_again.look_again`)."""
     record = ep.record
     config = ep.config
     if reason is None:
         reason = ep.reach.reason if ep.reach is not None else "unreachable"
     if record.regrasps >= config.max_regrasps:
-        raise TaskFailedError(
+        return _other_approach_or_fail(
+            ep,
             failure,
             f"after {config.max_regrasps} regrasps and {record.posture_retries} posture "
             f"retries: {reason}",
@@ -72,9 +76,19 @@ def regrasp_or_fail(
         seed[-1] += np.pi if seed[-1] < 0 else -np.pi
         ik = checker.solve_ik(goal_p - backoff * goal_R[:, 2], goal_R, seed)
     if not ik.found:
-        raise TaskFailedError(failure, f"{reason}; cannot regrasp ({how})")
+        return _other_approach_or_fail(ep, failure, f"{reason}; cannot regrasp ({how})")
     back = checker.solve_ik(goal_p, goal_R, ik.q)
     reposition(block_site(ep), back.q if back.found else ik.q, np.asarray(ep.coarse.hand_q))
     record.posture_retries = 0
     ep.synthesis = ep.contacts = ep.reach = None
     return Step(State.FINE_REACH, f"regrasp ({reason}) with the {how}")
+
+
+def _other_approach_or_fail(ep: Episode, failure: Failure, detail: str) -> Step:
+    """Under ``--approach auto``, a top grasp unreachable after its regrasps gives way to the
+    lateral approach (:mod:`fsm.handlers.other_approach`); otherwise the episode fails with
+    ``failure`` and ``detail``."""
+    other = other_approach_left(ep, failure)
+    if other is None:
+        raise TaskFailedError(failure, detail)
+    return take_other_approach(ep, other, failure, detail)
