@@ -166,8 +166,11 @@ def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> Non
     """With no regrasp allowed, random scene 104's first call for one (Posture Control's, after
     its posture retries: the thumb short) ends the episode there, with Posture Control's own
     reason, not the regrasp's; no visit goes back to Fine Reach. (Its fourth call, with three
-    allowed, is the squeeze's: the same bound, 2.5 times the run.)"""
-    result = _random_episode(104, tmp_path, dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0))
+    allowed, is the squeeze's: the same bound, 2.5 times the run.) The top approach is asked
+    for: under ``auto`` the unreachable top grasp now gives way to the lateral approach, which
+    has a path there and delivers (``fsm.handlers.other_approach``)."""
+    config = dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0)
+    result = _random_episode(104, tmp_path, config, approach="top")
     assert not result.success
     assert result.failure == "contact unreachable after posture retries"
     assert result.failure_detail.startswith("after 0 regrasps"), result.failure_detail
