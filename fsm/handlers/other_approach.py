@@ -21,12 +21,12 @@ UNREACHABLE = (Failure.CONTACT_UNREACHABLE, Failure.FINGERS_CANNOT_REACH)
 def other_approach_left(ep: Episode, failure: Failure) -> str | None:
     """The approach ``auto`` takes next when the grasp at the end of the one taken is
     unreachable (``failure`` one of :data:`UNREACHABLE`): the lateral one after a top grasp,
-    when Coarse Reach found a path for it too and it was not given up already; None otherwise
-    (an approach forced on the command line, a lateral grasp, another failure)."""
+    when Coarse Reach found a path for it too; None otherwise (an approach forced on the
+    command line, a lateral grasp, the approach taken after a switch, another failure)."""
     coarse = ep.coarse
     if ep.options.approach != "auto" or coarse is None or failure not in UNREACHABLE:
         return None
-    if coarse.approach != "top" or "lateral" in ep.closed_approaches:
+    if coarse.approach != "top":  # after the switch Coarse Reach's plan is the lateral one
         return None
     lateral = coarse.candidates.get("lateral")
     return "lateral" if lateral is not None and lateral.found else None

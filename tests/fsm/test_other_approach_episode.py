@@ -42,21 +42,20 @@ def test_auto_gives_up_a_top_grasp_it_cannot_reach_and_delivers_from_the_side(
     assert j["lift_clearance_m"] >= 0.05 and not j["finger_contact"]
 
 
-def _episode(approach: str, taken: str, lateral_found: bool | None, closed=()) -> SimpleNamespace:
+def _episode(approach: str, taken: str, lateral_found: bool | None) -> SimpleNamespace:
     """What :func:`other_approach_left` reads of an episode: the options' approach, the coarse
-    plan's approach and candidates, and the approaches given up."""
+    plan's approach and candidates."""
     candidates = {} if lateral_found is None else {"lateral": SimpleNamespace(found=lateral_found)}
     return SimpleNamespace(
         options=SimpleNamespace(approach=approach),
         coarse=SimpleNamespace(approach=taken, candidates=candidates),
-        closed_approaches=closed,
     )
 
 
 def test_only_an_unreachable_top_grasp_under_auto_gives_way_and_only_to_a_lateral_path() -> None:
     """The lateral approach is taken next only under ``auto``, after a top grasp, for an
     unreachable grasp (not a weak one, a slip or a drop), where Coarse Reach found a lateral
-    path, and not to an approach given up already."""
+    path."""
     unreachable = Failure.CONTACT_UNREACHABLE
     assert other_approach_left(_episode("auto", "top", True), unreachable) == "lateral"
     assert other_approach_left(_episode("auto", "top", True), Failure.FINGERS_CANNOT_REACH)
@@ -64,6 +63,5 @@ def test_only_an_unreachable_top_grasp_under_auto_gives_way_and_only_to_a_latera
     assert other_approach_left(_episode("auto", "lateral", True), unreachable) is None
     assert other_approach_left(_episode("auto", "top", False), unreachable) is None
     assert other_approach_left(_episode("auto", "top", None), unreachable) is None
-    assert other_approach_left(_episode("auto", "top", True, ("lateral",)), unreachable) is None
     for failure in (Failure.GRASP_NOT_CONVERGED, Failure.SLIPPED_DURING_LIFT):
         assert other_approach_left(_episode("auto", "top", True), failure) is None
