@@ -1,9 +1,9 @@
 """Speed of the lateral grasp search (section 5.2's reachability criteria over the hand's sampled
-finger postures, :mod:`controllers.lateral_grasp`): the four-contact and then the three-contact
-search at every sampled palm pose beside ``single_square``, the arm at its lateral coarse goal,
-as one pre-shape search of the task cycle runs them. Prints the poses, the seconds each search
-took over them and a digest of the grasps found (the number and the sum of their S_G), which two
-versions of the code must share for their times to be compared.
+finger postures, :mod:`controllers.preshape.lateral_grasp`): the four-contact and then the
+three-contact search at every sampled palm pose beside ``single_square``, the arm at its lateral
+coarse goal, as one pre-shape search of the task cycle runs them. Prints the poses, the seconds each
+search took over them and a digest of the grasps found (the number and the sum of their S_G), which
+two versions of the code must share for their times to be compared.
 
 Usage: python -m benchmarks.bench_lateral_search [--repeats 3]
 """
@@ -18,13 +18,13 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from controllers import lateral_grasp
-from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
-from controllers.finger_geometry import PerceivedPrism
-from controllers.finger_samples import FingerSamples
-from controllers.palm_candidates import PoseSetting, lateral_poses
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.finger_samples import FingerSamples
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape import lateral_grasp
+from controllers.preshape.palm_candidates import PoseSetting, lateral_poses
+from controllers.reach.coarse import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from graspsim_base import cli
 from hand_sim import robot
 from hand_sim.scene import load_scene

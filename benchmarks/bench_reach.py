@@ -18,14 +18,13 @@ from collections.abc import Sequence
 import mink
 import numpy as np
 
-from controllers.arm_path import execute_path, plan_arm_path
-from controllers.cspace import CollisionChecker
-from controllers.delivery import plan_delivery
+from controllers.deliver.plan import plan_delivery
 from controllers.errors import ReachError
-from controllers.fine_reach import fine_reach
-from controllers.harmonic import ascend, solve_harmonic
-from controllers.manipulability import ManipulabilityTask
-from controllers.posture import (
+from controllers.planning.cspace import CollisionChecker
+from controllers.planning.harmonic import ascend, solve_harmonic
+from controllers.posture.manipulability import ManipulabilityTask
+from controllers.posture.reduced_ik import ReducedStep
+from controllers.posture.solver import (
     IK_DAMPING,
     IK_DT,
     PAD_CENTRE_COST,
@@ -37,8 +36,15 @@ from controllers.posture import (
     moving_dofs,
     solve_posture,
 )
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, plan_coarse_reach, solve_goal
-from controllers.reduced_ik import ReducedStep
+from controllers.reach.arm_path import execute_path, plan_arm_path
+from controllers.reach.coarse import (
+    PRESHAPE,
+    ReachTarget,
+    goal_poses,
+    plan_coarse_reach,
+    solve_goal,
+)
+from controllers.reach.fine import fine_reach
 from hand_sim import clitools as cli
 from hand_sim import robot
 from hand_sim.indices import RobotIndices

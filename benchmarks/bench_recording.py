@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.arm_path import execute_path
-from controllers.cspace import CollisionChecker
+from controllers.deliver.carry import move_palm
 from controllers.grasp.composition import KnowledgeBased
-from controllers.grasp.session import GraspSynthesis
-from controllers.grip import move_hand
-from controllers.reach import ReachTarget, plan_coarse_reach
-from controllers.transport import move_palm
+from controllers.grasp.synthesis import GraspSynthesis
+from controllers.hand.grip import move_hand
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.arm_path import execute_path
+from controllers.reach.coarse import ReachTarget, plan_coarse_reach
 from fsm.recorder_protocol import SynthesisRecord, VisionView
 from fsm.recording import EpisodeRecorder
 from hand_sim.contacts import robot_contacts

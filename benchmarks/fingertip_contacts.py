@@ -20,8 +20,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.finger_samples import PAD_NORMAL_LOCAL
 from controllers.grasp import Polygon
+from controllers.hand.finger_samples import PAD_NORMAL_LOCAL
 from hand_sim.resources import models_dir
 from hand_sim.robot import FINGERS
 

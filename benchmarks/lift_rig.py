@@ -17,7 +17,7 @@ import numpy as np
 
 from benchmarks.hand_reachability import GraspFound
 from controllers.grasp import paper_object
-from controllers.tendon_control import TendonHandController
+from controllers.hand.tendon_control import TendonHandController
 from hand_sim import robot
 from hand_sim.contact_estimate import ContactEstimate, ContactEstimator, FrictionMemory
 from hand_sim.resources import models_dir

@@ -1,5 +1,5 @@
-"""Errors raised by the reach and posture controllers (``controllers.harmonic``,
-``controllers.cspace``, ``controllers.reach``, ``controllers.posture``).
+"""Errors raised by the reach and posture controllers (``controllers.planning.harmonic``,
+``controllers.planning.cspace``, ``controllers.reach.coarse``, ``controllers.posture.solver``).
 
 "No path" and "target unreachable" are results (``found`` / ``reachable`` flags), not errors: these
 exceptions are for malformed input, and their messages name the bad value.

@@ -1,8 +1,9 @@
 """The task cycle's tuning (section 5.2): one frozen dataclass, :class:`TaskConfig`, that an
 episode carries (``Episode.config``) and :class:`fsm.context.EpisodeOptions` passes in; a test
 or a study changes it with ``dataclasses.replace(DEFAULT_CONFIG, ...)``. The motion primitives'
-and the palm-pose search's own parameters are nested (:class:`controllers.motion.MotionParams`,
-:class:`controllers.palm_candidates.PalmPoseParams`)."""
+and the palm-pose search's own parameters are nested
+(:class:`controllers.preshape.moves.MotionParams`,
+:class:`controllers.preshape.palm_candidates.PalmPoseParams`)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import numpy as np
 
 from controllers.grasp.score import SUCCESS_THRESHOLD, opposition_floor
 from controllers.grasp.task_height import HEIGHT_TRIES
-from controllers.motion import MotionParams
-from controllers.palm_candidates import PalmPoseParams
+from controllers.preshape.moves import MotionParams
+from controllers.preshape.palm_candidates import PalmPoseParams
 
 #: Values of ``TaskConfig.lateral_contacts``.
 LATERAL_CONTACTS = ("pinch", "sampled", "sampled-first")
@@ -41,14 +42,14 @@ class TaskConfig:
     reach_check_every: int = 10
     #: How far (m) past its contact a lateral grasp's fingertip must reach (SQUEEZE_REACH for a
     #: top grasp). A lateral squeeze runs along each finger's normal-squeeze direction, past the
-    #: inside posture by extrapolation (controllers.grip.plan_grip, along_normal), so the reach
+    #: inside posture by extrapolation (controllers.hand.grip.plan_grip, along_normal), so the reach
     #: only has to show that the pad gets into the face. Chosen by looking at the result: on
     #: single_rectangle --approach lateral --controller kb, seeds 0-9, 8 of 10 delivered with
     #: 4 mm, 5 of 10 with SQUEEZE_REACH's 6 mm (the fingers on the far contacts cannot reach 6 mm
     #: into the face).
     lateral_squeeze_reach: float = 0.004
     #: With ``--model 3d``, a lateral grasp's Wrench Closure runs the 3-D lateral controller
-    #: (controllers.grasp.session_lateral: contacts on their arcs at the heights the fingers
+    #: (controllers.grasp.synthesis_lateral: contacts on their arcs at the heights the fingers
     #: take, S_G in 3-D with the weight) instead of the planar one. Off: at the heights a
     #: lateral hand's fingers take (mf 4.9-6.0 cm above the block's centre, the thumb 4.4-6.9
     #: cm below it) the 3-D S_G is 0.99-2.24 on the nine single_rectangle grasps of seeds 0-9
@@ -58,7 +59,7 @@ class TaskConfig:
     lateral_grasp_3d: bool = False
     #: Where a lateral pre-shape's contacts come from: "sampled-first" (default), the
     #: lowest-S_G combination of contacts the hand's sampled finger postures take at palm poses
-    #: beside the block (controllers.lateral_grasp; each contact then stays on its own face,
+    #: beside the block (controllers.preshape.lateral_grasp; each contact then stays on its own face,
     #: the fingers come in along its normal), the pinch pre-shape's (the points across the
     #: approach axis from its fingertips) only where no pose has one; "sampled", the pinch's
     #: first and the sampled ones where no pose reaches the pinch's; "pinch", the pinch's only
@@ -80,7 +81,7 @@ class TaskConfig:
     lateral_gate: float = SUCCESS_THRESHOLD
     #: Where no palm pose has a sampled grasp of four contacts within the gate, the lateral
     #: pre-shape takes one of three: the thumb against two fingers, the third finger held
-    #: clear of the block (controllers.lateral_grasp.three_contact_lateral_grasp; Eq. 13 over
+    #: clear of the block (controllers.preshape.lateral_grasp.three_contact_lateral_grasp; Eq. 13 over
     #: three contacts: a thumb against two fingers on parallel faces scores 0.33 where against
     #: three it scores 0.50). Before the pinch pre-shape. Measured in docs/task_cycle.md,
     #: "Three contacts where four cannot pass Eq. 13".
@@ -96,14 +97,14 @@ class TaskConfig:
     #: "Eq. 13's gate counted from the thumb's opposition".
     lateral_gate_rule: str = "opposition"
     #: A lateral squeeze's pressing finger that feels nothing closes again at the closing
-    #: speed (controllers.grip.squeeze ``seek``): a balanced lateral squeeze gives a light
+    #: speed (controllers.hand.grip.squeeze ``seek``): a balanced lateral squeeze gives a light
     #: finger a few tenths of a newton, and the force loop then moved it a few millimetres a
     #: second towards a face the other fingers had pushed away (single_irregular_triangle's
     #: middle finger, 0.0 of 0.28 N after 2 s). Measured in docs/task_cycle.md, "Eq. 13's gate
     #: counted from the thumb's opposition".
     lateral_squeeze_seek: bool = True
     #: A lateral hand leaving a block standing on the table rises until its fingertips clear
-    #: the block's top before it backs off (controllers.transport.retreat ``clear_top``): backing
+    #: the block's top before it backs off (controllers.deliver.carry.retreat ``clear_top``): backing
     #: off first dragged blocks set down upright 4-14 cm and tipped them (random 13, 43, 80).
     #: Measured in docs/task_cycle.md, "A pitched palm's face, and a retreat that rises first".
     lateral_retreat_rise: bool = True
@@ -111,11 +112,11 @@ class TaskConfig:
     #: with the most friction to spare at the planned contacts, each at most GRIP_FORCE
     #: (controllers.grasp.holding: a 3-D grasp force programme, clarabel); False: the shares
     #: that balance the planned contacts by least squares, without the weight or the friction
-    #: cones (controllers.grip.balanced_shares). Measured in docs/task_cycle.md, "A squeeze that
+    #: cones (controllers.hand.grip.balanced_shares). Measured in docs/task_cycle.md, "A squeeze that
     #: holds the weight".
     lateral_holding_forces: bool = True
     #: The sampled lateral pre-shape search tries, within each band of S_G, the palm poses
-    #: whose grasp keeps a friction reserve by the 3-D model (controllers.lateral_squeeze)
+    #: whose grasp keeps a friction reserve by the 3-D model (controllers.hand.lateral_squeeze)
     #: before those whose grasp does not. Measured in docs/task_cycle.md, "A squeeze that holds
     #: the weight".
     lateral_reserve_first: bool = True
@@ -190,7 +191,7 @@ class TaskConfig:
     lateral_tip_motion_limit: float = 0.002
     #: Lateral grasps: Coarse Reach first asks whether a hand holding the block as its goal
     #: would can set it down at the place point, and where it cannot, takes the first goal
-    #: pitched further down (controllers.reach.LATERAL_TILTS) whose hand can
+    #: pitched further down (controllers.reach.coarse.LATERAL_TILTS) whose hand can
     #: (fsm.handlers.set_down_pitch). Set before any bench episode with it ran. Random seeds
     #: 0-99: 89 / 100 against 87 without; 100-149: 39 / 50 against 38; 150-199: 44 / 50
     #: against 42. Measured in docs/task_cycle.md, "A lateral approach pitched for its
@@ -200,7 +201,7 @@ class TaskConfig:
     #: (the hand at its contacts) cannot set the block down at the place point, as it passes
     #: over one whose approach collides (fsm.handlers.set_down_pitch.SetDownGate), until this
     #: many poses have been passed over for it in one search. Then, while a lateral axis pitched
-    #: further down is left (controllers.reach.LATERAL_TILTS), Coarse Reach is entered again for
+    #: further down is left (controllers.reach.coarse.LATERAL_TILTS), Coarse Reach is entered again for
     #: it; at the last pitch the poses after are taken unasked. 0 turns it off. 4 was set before
     #: any bench episode with the gate ran. Random seeds 0-99: 89 / 100 against 89 without;
     #: 100-149: 40 / 50 against 39; 150-199: 44 / 50 against 44. Measured in docs/task_cycle.md,

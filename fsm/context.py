@@ -12,14 +12,14 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.finger_assignment import FingerContacts
-from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.composition import Composer
-from controllers.grasp.session import GraspSynthesis
-from controllers.grasp.session3d import GraspSynthesis3D
-from controllers.grip import Grip
-from controllers.hand_reach import HandReach
-from controllers.reach import CoarseReachPlan, ReachTarget
+from controllers.grasp.synthesis import GraspSynthesis
+from controllers.grasp.synthesis3d import GraspSynthesis3D
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.grip import Grip
+from controllers.hand.reachability import HandReach
+from controllers.reach.coarse import CoarseReachPlan, ReachTarget
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from hand_sim.world import DEFAULT_HAND, HAND_KINDS, World
@@ -57,7 +57,7 @@ class EpisodeOptions:
     controller: str = "pi"
     approach: str = "auto"
     #: "planar" (the paper's controllers, contacts at the fingertips' height) or "3d" (contacts
-    #: with heights, controllers.grasp.session3d) for a top grasp
+    #: with heights, controllers.grasp.synthesis3d) for a top grasp
     grasp_model: str = DEFAULT_GRASP_MODEL
     cycles: int | None = 1  #: None: all blocks
     out: Path = Path("runs/clutter3-0")
@@ -86,10 +86,10 @@ class CycleRecord:
     approach: str = ""
     #: the approach axis's pitch below the horizontal (deg): 90 for a top grasp, 0 for a
     #: lateral one, 15-45 where the arm reaches a lateral goal only pitched down
-    #: (controllers.reach.LATERAL_TILTS)
+    #: (controllers.reach.coarse.LATERAL_TILTS)
     approach_pitch_deg: float | None = None
     #: a lateral palm beyond the block facing back towards the arm's base (no goal on the
-    #: base's side: controllers.reach.plan_coarse_reach)
+    #: base's side: controllers.reach.coarse.plan_coarse_reach)
     approach_far_side: bool = False
     #: under --approach auto, the approach given up because its grasp proved unreachable at its
     #: end, and why ("top: contact unreachable ...": fsm.handlers.other_approach); "" otherwise
@@ -128,7 +128,7 @@ class CycleRecord:
     lift_tilt_deg: float | None = None
     lift_clearance: float = 0.0  #: m, highest block bottom above the table while carried
     #: how Deliver's plan lowers the block: "" keeping the planning clearance with the hand as
-    #: it holds it, else how it does (controllers.delivery: nearer its neighbours, from above
+    #: it holds it, else how it does (controllers.deliver.plan: nearer its neighbours, from above
     #: them, turned about the place point)
     set_down: str = ""
     judgement: dict[str, Any] | None = None

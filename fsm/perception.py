@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.palm_candidates import robot_base_xy
+from controllers.preshape.palm_candidates import robot_base_xy
 from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
 from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.states import Failure, TaskFailedError

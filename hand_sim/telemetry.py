@@ -43,7 +43,7 @@ from hand_sim.schedule import RateSchedule
 from hand_sim.world import CAMERA_NAME, World
 
 #: Length (m) of a contact force arrow per newton: the 6 N grip force of
-#: :data:`controllers.grip.GRIP_FORCE` draws a 3 cm arrow beside a ~5 cm block.
+#: :data:`controllers.hand.grip.GRIP_FORCE` draws a 3 cm arrow beside a ~5 cm block.
 FORCE_ARROW_SCALE = 0.005
 #: Radius (m) of the drawn contact points and force arrows.
 CONTACT_RADIUS = 0.003

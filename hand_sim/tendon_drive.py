@@ -2,7 +2,7 @@
 joint angles -> joint torques (a PD loop) -> 32 non-negative tendon tensions, and back from measured
 tensions to joint torques. This is the simulated robot's own joint servo, so it lives in
 ``hand_sim`` beside :class:`~hand_sim.world.World`, which runs it at every physics step when the
-world is built with ``hand="tendon"``; :mod:`controllers.tendon_control` re-exports it and adds
+world is built with ``hand="tendon"``; :mod:`controllers.hand.tendon_control` re-exports it and adds
 the standalone loop the model's tests use.
 
 The law is the one the Utah/MIT hand's joint controllers used in outline (Jacobsen et al., "Design

@@ -110,7 +110,7 @@ class World:
         #: control period): an episode's recorder and clock hook in here.
         self.on_step: Callable[[World], None] | None = None
         #: Reusable state of the controllers' kinematic queries, by model
-        #: (:mod:`controllers.kinematic_scratch`); nothing of the simulation.
+        #: (:mod:`controllers.posture.kinematic_scratch`); nothing of the simulation.
         self.scratch: dict[object, object] = {}
 
     # --- construction ----------------------------------------------------------------------

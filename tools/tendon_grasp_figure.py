@@ -22,7 +22,7 @@ import numpy as np
 
 from controllers.grasp.objects import PAPER_OBJECTS
 from controllers.grasp.registry import make_composer
-from controllers.grip import GRIP_FORCE
+from controllers.hand.grip import GRIP_FORCE
 from experiments.physics.report import CONTROLLERS
 from experiments.physics.study import (
     GraspOutcome,

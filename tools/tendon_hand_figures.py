@@ -6,7 +6,7 @@ models/utah_mit_hand/scene.xml:
   ``mujoco.Renderer`` (run with ``MUJOCO_GL=egl`` on a machine without a display);
 * ``docs/models/utah_mit_hand_tensions.png``: the first finger's eight tendon tensions (measured
   by the tension sensors, and as commanded) while
-  :class:`controllers.tendon_control.TendonHandController` closes the hand (palm up, with
+  :class:`controllers.hand.tendon_control.TendonHandController` closes the hand (palm up, with
   gravity) over 1 s, holds 0.5 s and opens it over 1 s.
 
 Usage: MUJOCO_GL=egl .venv/bin/python -m tools.tendon_hand_figures [--out docs/models]
@@ -21,7 +21,7 @@ from types import ModuleType
 import mujoco
 import numpy as np
 
-from controllers.tendon_control import TendonHandController
+from controllers.hand.tendon_control import TendonHandController
 from hand_sim import robot
 
 REPO = Path(__file__).resolve().parents[1]

@@ -45,8 +45,8 @@ from controllers.grasp.polygon import ContactFrames, Polygon, wrap_angle
 from controllers.grasp.polygon_batch import PolygonBatch
 from controllers.grasp.prism import ContactFrames3D, face_axes
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
-from controllers.grasp.session import separate_contacts
 from controllers.grasp.state import ControlState3D
+from controllers.grasp.synthesis import separate_contacts
 from controllers.grasp.trials import DescentSettings, TrialOutcomes, descend
 from controllers.grasp.wrench3d import mc_residual
 
@@ -286,7 +286,7 @@ def pad_spacing(
     batch: PrismBatch, index: NDArray[np.int64], min_separation: float, offset: float
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """The projection that keeps each trial's pads ``min_separation`` apart (the polygons' own
-    unit; :func:`~controllers.grasp.session.separate_contacts` on theta); the identity for 0."""
+    unit; :func:`~controllers.grasp.synthesis.separate_contacts` on theta); the identity for 0."""
 
     def separate(th: NDArray[np.float64]) -> NDArray[np.float64]:
         if min_separation <= 0.0:
@@ -318,8 +318,8 @@ def run_trials_3d(
     ``rng`` draws the initial contacts (unless ``initial`` = (theta, z), z the heights above the
     centre of mass in the unit-moment frame, is given) and feeds the composer. The composer's
     gradients are (T, 2n), theta then height. ``min_separation`` > 0 keeps the pads apart
-    after every step as the planar :class:`~controllers.grasp.session.GraspSynthesis` does
-    (:func:`~controllers.grasp.session.separate_contacts` on theta, lengths in the polygons'
+    after every step as the planar :class:`~controllers.grasp.synthesis.GraspSynthesis` does
+    (:func:`~controllers.grasp.synthesis.separate_contacts` on theta, lengths in the polygons'
     own unit; one trial at a time, for a robot's few trials). ``settings`` says how many
     contacts, steps, the gain and the task (default :class:`DescentSettings`). The same seed
     gives the same result."""

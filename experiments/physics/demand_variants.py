@@ -6,7 +6,7 @@ variant, the AUC (pooled and per model) over the tested grasps that have contact
 - ``registered``: the measure as the study computes it (measured forces, the pads' torsion);
 - ``no torsion``: the pads' torsional friction left out;
 - ``grip target``: every finger's normal force bounded by the grip's target
-  (:data:`controllers.grip.GRIP_FORCE`) instead of what its pad measured.
+  (:data:`controllers.hand.grip.GRIP_FORCE`) instead of what its pad measured.
 The stored points and forces are rounded (0.01 mm, 1 mN), so ``registered`` reproduces the
 study's values to about 1e-3, not bit for bit.
 """
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.grip import GRIP_FORCE
-from controllers.reach import ReachTarget
+from controllers.hand.grip import GRIP_FORCE
+from controllers.reach.coarse import ReachTarget
 from experiments.physics.force_demand import PAD_TORSION, ForceDemand, held_force_demand
 from experiments.physics.roc import roc
 from hand_sim.scene import load_scene

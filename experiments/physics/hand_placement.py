@@ -5,9 +5,9 @@ The physical grasp study (:mod:`experiments.physics.study`) tests many grasps of
 needs each grasp placed quickly and the same way every time, not the task cycle's reach, so:
 - **seeds**: the palm held :data:`PALM_GAPS` above the block's top, palm down (a top grasp),
   turned about the vertical to one of :data:`YAWS` equally spaced yaws; the arm's IK
-  (:meth:`controllers.cspace.CollisionChecker.solve_ik`) gives each posture once per block, the
-  fingers pre-shaped with their tips on the block's faces at the task cycle's grasp depth
-  (:func:`controllers.fine_reach.project_to_surface`, what Fine Reach does);
+  (:meth:`controllers.planning.cspace.CollisionChecker.solve_ik`) gives each posture once per block,
+  the fingers pre-shaped with their tips on the block's faces at the task cycle's grasp depth
+  (:func:`controllers.reach.fine.project_to_surface`, what Fine Reach does);
 - **which seed, which finger on which contact**: every seed with every one of the 24 ways to
   give the four contacts to the four fingers, ranked first by whether each pad, at the seed's
   pre-shape, faces its contact's face within the reach test's :data:`MAX_PAD_ANGLE`, then by
@@ -18,14 +18,15 @@ needs each grasp placed quickly and the same way every time, not the task cycle'
   in turn from each kind of seed (palm gap and pre-shape depth, :func:`interleaved_starts`):
   the ranking alone puts one kind in every early place;
 - **Posture Control** (the task cycle's IK seeding for a top grasp, one implementation:
-  :func:`controllers.palm_pose.search_seeds`): from each of the first :data:`SEEDS_TRIED`
-  (seed, assignment) pairs so taken, arm and hand IK (:func:`controllers.posture.solve_posture`,
-  ``joints="arm+hand"``, collision avoidance with the fingers allowed to touch the block,
-  fingertips :data:`SQUEEZE_REACH` inside each contact and pads facing it,
-  :func:`controllers.hand_reach.grip_targets`); a posture that tilts the palm more than
+  :func:`controllers.preshape.palm_search.search_seeds`): from each of the first :data:`SEEDS_TRIED`
+  (seed, assignment) pairs so taken, arm and hand IK
+  (:func:`controllers.posture.solver.solve_posture`, ``joints="arm+hand"``, collision avoidance with
+  the fingers allowed to touch the block, fingertips :data:`SQUEEZE_REACH` inside each contact and
+  pads facing it,
+  :func:`controllers.hand.reachability.grip_targets`); a posture that tilts the palm more than
   :data:`MAX_PALM_TILT` from vertical is refused (the task cycle's limit for a top grasp); the
   contacts are then confirmed from that posture with the task cycle's reachability test
-  (:func:`controllers.hand_reach.reachable_contacts`: pad spacing, hand IK, pad angle, link
+  (:func:`controllers.hand.reachability.reachable_contacts`: pad spacing, hand IK, pad angle, link
   penetration). The first confirmed posture places the hand; when none is, the grasp is
   unreachable with the last reason.
 Nothing here moves the simulation; the study sets the arm and hand where this says.
@@ -40,15 +41,15 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.cspace import CollisionChecker
-from controllers.fine_reach import GRASP_DEPTH, project_to_surface
-from controllers.finger_assignment import FingerContacts, contacts_at_tips, given_contacts
-from controllers.finger_geometry import PerceivedPrism, fingertips_at, pad_normals
-from controllers.hand_reach import MAX_PAD_ANGLE, HandReach, grip_targets
-from controllers.palm_candidates import DEFAULT_PALM_POSE, robot_base_xy
-from controllers.palm_pose import ReachQuery, SeedStart, search_seeds
-from controllers.posture import solve_posture
-from controllers.reach import PRESHAPE, ReachTarget
+from controllers.hand.finger_assignment import FingerContacts, contacts_at_tips, given_contacts
+from controllers.hand.finger_geometry import PerceivedPrism, fingertips_at, pad_normals
+from controllers.hand.reachability import MAX_PAD_ANGLE, HandReach, grip_targets
+from controllers.planning.cspace import CollisionChecker
+from controllers.posture.solver import solve_posture
+from controllers.preshape.palm_candidates import DEFAULT_PALM_POSE, robot_base_xy
+from controllers.preshape.palm_search import ReachQuery, SeedStart, search_seeds
+from controllers.reach.coarse import PRESHAPE, ReachTarget
+from controllers.reach.fine import GRASP_DEPTH, project_to_surface
 from hand_sim import robot
 from hand_sim.blocks import GEOM_SUFFIX
 from hand_sim.world import World
@@ -64,7 +65,7 @@ YAWS = 12
 #: pairs in rank order, before :func:`interleaved_starts`).
 SEEDS_TRIED = 6
 #: Largest tilt (rad) of the palm's approach axis from vertical (the task cycle's limit for a
-#: top grasp, :attr:`controllers.palm_candidates.PalmPoseParams.max_palm_tilt_top`).
+#: top grasp, :attr:`controllers.preshape.palm_candidates.PalmPoseParams.max_palm_tilt_top`).
 MAX_PALM_TILT = DEFAULT_PALM_POSE.max_palm_tilt_top
 #: The palm's approach axis when it points straight down.
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -249,7 +250,7 @@ def place_from(
 ) -> Placement:
     """Posture Control for contacts ``theta`` from each of ``pairs`` (seed posture, contacts
     given to its fingers) in order: the task cycle's IK seeding
-    (:func:`controllers.palm_pose.search_seeds`), the palm's tilt measured from vertical; the
+    (:func:`controllers.preshape.palm_search.search_seeds`), the palm's tilt measured from vertical; the
     first confirmed posture places the hand."""
     th = np.asarray(theta, dtype=float)
     checker = CollisionChecker(world) if checker is None else checker

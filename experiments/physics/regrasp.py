@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.fine_reach import project_to_surface
-from controllers.reach import ReachTarget
+from controllers.reach.coarse import ReachTarget
+from controllers.reach.fine import project_to_surface
 from experiments.physics.compare import held_share
 from experiments.physics.hand_placement import HandPosture, ranked_starts
 

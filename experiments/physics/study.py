@@ -2,23 +2,24 @@
 taken by the simulated hand and tested in MuJoCo (issue 12, part 2).
 
 One grasp, start to end (:func:`test_grasp`):
-1. synthesis: a :class:`~controllers.grasp.session.GraspSynthesis` (KB, QL or PI, section 3.6)
+1. synthesis: a :class:`~controllers.grasp.synthesis.GraspSynthesis` (KB, QL or PI, section 3.6)
    from four contacts drawn uniformly in theta, run to convergence or its step limit, with the
    task cycle's pad spacing (``min_separation``); its S_G is the verdict under test;
 2. placement (:mod:`experiments.physics.hand_placement`): the task cycle's Posture Control
    (arm and hand IK) started from palm-down postures over the block finds an arm posture, palm
    within 12 deg of vertical, from which the task cycle's reach test passes; the fingers'
-   pre-contact postures from :func:`controllers.grip.plan_grip`. The arm and hand are set there (not
+   pre-contact postures from :func:`controllers.hand.grip.plan_grip`. The arm and hand are set there
+   (not
    driven: the approach is not under test) and the servos hold them. A grasp no start reaches is
    *unreachable*;
-3. the task cycle's Grasp Object: :func:`~controllers.grip.close` with the touch guard, then
-   :func:`~controllers.grip.squeeze` to :data:`controllers.grip.GRIP_FORCE` per finger, shared as
+3. the task cycle's Grasp Object: :func:`~controllers.hand.grip.close` with the touch guard, then
+   :func:`~controllers.hand.grip.squeeze` to :data:`controllers.hand.grip.GRIP_FORCE` per finger, shared as
    the S_G LP's normal forces. A finger that never touches makes the grasp *not closed* (counted
    with the unreachable ones, not as a drop);
 4. the physical test: the table's collisions are switched off (the block hangs in the hand), an
    external force of m*g on the block's centre of mass (``data.xfrc_applied``) along +x, -x, +y,
    -y, +z and -z (world axes), :data:`FORCE_TIME` each, then a :data:`LIFT_HEIGHT` lift of the
-   palm with the arm (:func:`controllers.transport.lift`). The block's pose is measured in the
+   palm with the arm (:func:`controllers.deliver.carry.lift`). The block's pose is measured in the
    palm's frame against its pose at the end of the squeeze; the grasp *holds* when it never
    moves more than :data:`MAX_SHIFT` nor turns more than :data:`MAX_TURN` (the first stage that
    exceeds either ends the test).
@@ -32,16 +33,16 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from controllers.cspace import CollisionChecker
+from controllers.deliver.carry import LIFT_HEIGHT, lift
 from controllers.errors import ReachError
-from controllers.finger_geometry import PerceivedPrism
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score import grasp_score
 from controllers.grasp.task_height import HEIGHT_TRIES
-from controllers.grip import GRIP_FORCE, close, plan_grip, squeeze
-from controllers.reach import ReachTarget
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.grip import GRIP_FORCE, close, plan_grip, squeeze
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.coarse import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
-from controllers.transport import LIFT_HEIGHT, lift
 from experiments.physics.compliance import grasp_compliance
 from experiments.physics.force_demand import held_force_demand
 from experiments.physics.hand_placement import HandPosture, Placement, place_hand, top_postures

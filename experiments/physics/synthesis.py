@@ -1,7 +1,7 @@
 """Step 1 of the physical study, planar or 3-D: the grasp controller's contacts for one grasp.
 
 - ``planar`` (the paper's controllers with phi = 0): a
-  :class:`~controllers.grasp.session.GraspSynthesis` from four contacts uniform in theta, with
+  :class:`~controllers.grasp.synthesis.GraspSynthesis` from four contacts uniform in theta, with
   the task cycle's pad spacing; the hand then takes each contact at its fingertip's height;
 - ``3d`` (:mod:`controllers.grasp.trials3d`): the same composer on the 3-D controllers, over
   theta and the contacts' heights, within the band of heights a top grasp reaches
@@ -19,14 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.fine_reach import GRASP_DEPTH, TOP_GRASP_DEPTHS
 from controllers.grasp.composition import Composer
 from controllers.grasp.polygon import Polygon
-from controllers.grasp.session import GraspSynthesis
-from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.synthesis import GraspSynthesis
+from controllers.grasp.synthesis3d import GraspSynthesis3D
 from controllers.grasp.task_height import HEIGHT_GAP, HEIGHT_TRIES
 from controllers.grasp.trials3d import HeightBand
-from controllers.hand_reach import CONTACT_SEPARATION
+from controllers.hand.reachability import CONTACT_SEPARATION
+from controllers.reach.fine import GRASP_DEPTH, TOP_GRASP_DEPTHS
 from hand_sim import robot
 
 #: Grasp models of the study (and of ``--model``).

@@ -10,10 +10,10 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import START_IN_COLLISION, ArmPath, execute_path
-from controllers.cspace import CollisionChecker
-from controllers.palm_candidates import from_base_side, robot_base_xy
-from controllers.reach import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.palm_candidates import from_base_side, robot_base_xy
+from controllers.reach.arm_path import START_IN_COLLISION, ArmPath, execute_path
+from controllers.reach.coarse import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
 from fsm.context import Episode
 from fsm.handlers.common import rise_clear
 from fsm.handlers.lateral_preshape import lateral_preshape

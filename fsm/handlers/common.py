@@ -1,32 +1,33 @@
 """What several state handlers share: the episode's view of the controllers' explicit inputs
-(the motion primitives' :class:`~controllers.motion.BlockSite`, the palm-pose search's
-:class:`~controllers.palm_pose.ReachQuery`), and whether this cycle's grasp is lateral."""
+(the motion primitives' :class:`~controllers.preshape.moves.BlockSite`, the palm-pose search's
+:class:`~controllers.preshape.palm_search.ReachQuery`), and whether this cycle's grasp is
+lateral."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import execute_path
-from controllers.cspace import CollisionChecker
-from controllers.delivery import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
-from controllers.finger_assignment import FingerContacts
-from controllers.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
+from controllers.deliver.plan import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
 from controllers.grasp.score import grasp_score
-from controllers.grasp.session3d import GraspSynthesis3D
-from controllers.hand_reach import SQUEEZE_REACH
-from controllers.lateral_grasp import (
+from controllers.grasp.synthesis3d import GraspSynthesis3D
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.hand.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
+from controllers.hand.lateral_squeeze import lateral_squeeze
+from controllers.hand.reachability import SQUEEZE_REACH
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.lateral_grasp import (
     SampledGrasp,
 )
-from controllers.lateral_squeeze import lateral_squeeze
-from controllers.motion import ApproachPlan, BlockSite, approach_plan
-from controllers.palm_candidates import (
+from controllers.preshape.moves import ApproachPlan, BlockSite, approach_plan
+from controllers.preshape.palm_candidates import (
     approach_origin,
     face_arcs,
     lateral_arcs,
     robot_base_xy,
 )
-from controllers.palm_pose import ReachQuery
+from controllers.preshape.palm_search import ReachQuery
+from controllers.reach.arm_path import execute_path
 from fsm.context import Episode
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
@@ -42,15 +43,15 @@ def slides(ep: Episode) -> bool:
 
 def top_to_clear(ep: Episode) -> float | None:
     """The block's top (world z) a lateral hand's fingertips rise above before it backs off
-    from a block left standing (:func:`controllers.transport.retreat`), None for a top grasp
+    from a block left standing (:func:`controllers.deliver.carry.retreat`), None for a top grasp
     or with ``lateral_retreat_rise`` off."""
     return ep.target.top_z if slides(ep) and ep.config.lateral_retreat_rise else None
 
 
 def rise_clear(ep: Episode, clear: CollisionChecker) -> float | None:
     """Raise the palm straight up until the arm is clear of everything by ``clear``
-    (:func:`controllers.delivery.rise_until_clear`, each step kept
-    :data:`~controllers.delivery.SET_DOWN_CLEARANCE` from everything with the hand as it is)
+    (:func:`controllers.deliver.plan.rise_until_clear`, each step kept
+    :data:`~controllers.deliver.plan.SET_DOWN_CLEARANCE` from everything with the hand as it is)
     and move it there; how far (m), or None when it cannot rise clear (the arm stays)."""
     tight = CollisionChecker(ep.world, clearance=SET_DOWN_CLEARANCE, model=clear.model)
     start = ep.world.arm_qpos()
@@ -82,7 +83,7 @@ def sampled_preshape(ep: Episode) -> bool:
 
 def idle_finger(ep: Episode) -> int | None:
     """The finger that takes no contact in this cycle's grasp (a three-contact lateral
-    pre-shape's, :func:`controllers.lateral_grasp.three_contact_lateral_grasp`), or None."""
+    pre-shape's, :func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`), or None."""
     return ep.preshape_contacts.idle if sampled_preshape(ep) else None
 
 
@@ -94,7 +95,7 @@ def block_centre(ep: Episode) -> NDArray[np.float64]:
 
 def grasp_reserve(ep: Episode, grasp: SampledGrasp) -> float:
     """A sampled lateral grasp's friction reserve (N) by the 3-D model, squeezed as Grasp
-    Object would squeeze it (:func:`controllers.lateral_squeeze.lateral_squeeze`); -inf where no
+    Object would squeeze it (:func:`controllers.hand.lateral_squeeze.lateral_squeeze`); -inf where no
     forces hold the weight."""
     polygon = ep.target.polygon
     normals_xy = place_polygon(polygon.locate(grasp.theta).normal, (0.0, 0.0), ep.target.yaw)
@@ -179,7 +180,7 @@ def contact_heights(ep: Episode) -> NDArray[np.float64] | None:
 def plan_approach(
     ep: Episode, qpos: NDArray[np.float64], contacts: FingerContacts
 ) -> ApproachPlan | None:
-    """:func:`controllers.motion.approach_plan` for this cycle's block and grasp."""
+    """:func:`controllers.preshape.moves.approach_plan` for this cycle's block and grasp."""
     return approach_plan(block_site(ep), qpos, contacts, squeeze_reach(ep))
 
 
@@ -194,14 +195,14 @@ def contact_points(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float6
 
 def side_arcs(ep: Episode) -> NDArray[np.float64]:
     """The stretches of the perceived block's outline this cycle's lateral hand can take
-    (:func:`controllers.palm_candidates.lateral_arcs`; row 0 left of the approach axis, row 1
+    (:func:`controllers.preshape.palm_candidates.lateral_arcs`; row 0 left of the approach axis, row 1
     right), from the base's side of the block or, as the coarse reach's palm, its far side."""
     return lateral_arcs(ep.target, approach_from(ep), ep.config.palm_pose)
 
 
 def approach_from(ep: Episode) -> NDArray[np.float64]:
     """Where this cycle's lateral approach axis comes from in the table plane
-    (:func:`controllers.palm_candidates.approach_origin`)."""
+    (:func:`controllers.preshape.palm_candidates.approach_origin`)."""
     return approach_origin(robot_base_xy(ep.world), ep.target, ep.coarse.goal.palm_rotation)
 
 
@@ -220,7 +221,7 @@ def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np
 
 def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
     """Each lateral contact's arc (n, 2): the pre-shape contact's own face when they were sampled
-    (:func:`controllers.palm_candidates.face_arcs`), else its side's (:func:`arcs_of` of
+    (:func:`controllers.preshape.palm_candidates.face_arcs`), else its side's (:func:`arcs_of` of
     :func:`side_arcs`)."""
     if sampled_preshape(ep):
         inset = ep.config.palm_pose.side_inset

@@ -7,12 +7,7 @@ from collections import deque
 
 import numpy as np
 
-from controllers.arm_path import ROLL_TURNED_ABOVE
-from controllers.cspace import CollisionChecker
-from controllers.delivery import plan_delivery
-from controllers.grip import CONTROL_PERIOD, release
-from controllers.palm_candidates import robot_base_xy
-from controllers.transport import (
+from controllers.deliver.carry import (
     LIFT_HEIGHT,
     LIFT_TIME,
     LiftResult,
@@ -23,6 +18,11 @@ from controllers.transport import (
     move_palm,
     retreat,
 )
+from controllers.deliver.plan import plan_delivery
+from controllers.hand.grip import CONTROL_PERIOD, release
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.palm_candidates import robot_base_xy
+from controllers.reach.arm_path import ROLL_TURNED_ABOVE
 from fsm.config import TaskConfig
 from fsm.context import CycleRecord, Episode
 from fsm.handlers.common import slides, top_to_clear
@@ -88,7 +88,7 @@ def lift_held(
 
 def _lift_time(height: float) -> float:
     """The time (s) a lift of ``height`` (m) takes at the full lift's peak acceleration (the
-    cosine profile of :func:`controllers.transport.move_palm` peaks at (pi^2 / 2) height /
+    cosine profile of :func:`controllers.deliver.carry.move_palm` peaks at (pi^2 / 2) height /
     time^2): a shorter lift in proportionally less time would jerk the block ten times harder."""
     return LIFT_TIME * float(np.sqrt(height / LIFT_HEIGHT))
 

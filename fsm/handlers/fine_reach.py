@@ -6,7 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.fine_reach import (
+from controllers.grasp.synthesis import keep_contacts
+from controllers.hand.grip import backed_off_hand
+from controllers.hand.reachability import CONTACT_SEPARATION
+from controllers.planning.belief import PERCEIVED_GEOM
+from controllers.reach.fine import (
     GRASP_DEPTH,
     FineReachResult,
     SurfaceTargets,
@@ -14,10 +18,6 @@ from controllers.fine_reach import (
     fine_reach,
     reach_along_normals,
 )
-from controllers.grasp.session import keep_contacts
-from controllers.grip import backed_off_hand
-from controllers.hand_reach import CONTACT_SEPARATION
-from controllers.planning_model import PERCEIVED_GEOM
 from fsm.context import Episode
 from fsm.handlers.common import contact_arcs, sampled_preshape, slides, squeeze_reach
 from fsm.handlers.regrasp import regrasp_or_fail
@@ -56,7 +56,7 @@ def fine_reach_state(ep: Episode) -> Step:
 
 
 def _reach_by_fields(ep: Episode) -> FineReachResult:
-    """Fine Reach by the fingertips' harmonic fields (:func:`controllers.fine_reach.fine_reach`,
+    """Fine Reach by the fingertips' harmonic fields (:func:`controllers.reach.fine.fine_reach`,
     arm and hand) to the fingertips' projections on the perceived block (a lateral pinch
     pre-shape: its contacts)."""
     world = ep.world
@@ -94,7 +94,7 @@ def _reach_sampled(ep: Episode) -> FineReachResult:
     """Fine Reach after a sampled lateral pre-shape: the hand, backed off from the posture that
     takes the pre-shape's contacts, moves back in along the same lines to
     ``config.fine_reach_standoff`` outside them
-    (:func:`controllers.fine_reach.reach_along_normals`); the arm holds the palm pose chosen for
+    (:func:`controllers.reach.fine.reach_along_normals`); the arm holds the palm pose chosen for
     those contacts."""
     contacts = ep.preshape_contacts
     qpos = ep.world.data.qpos.copy()

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.grip import GRIP_FORCE, close, move_hand, plan_grip, squeeze
-from controllers.lateral_squeeze import lateral_squeeze
-from controllers.motion import preshape, retract
+from controllers.hand.grip import GRIP_FORCE, close, move_hand, plan_grip, squeeze
+from controllers.hand.lateral_squeeze import lateral_squeeze
+from controllers.preshape.moves import preshape, retract
 from fsm.context import Episode
 from fsm.handlers.common import (
     block_centre,
@@ -96,7 +96,7 @@ def grasp_object(ep: Episode) -> Step:
 
 
 def _lateral_squeeze(ep: Episode, planar: np.ndarray) -> tuple[np.ndarray, float, str]:
-    """A lateral grasp's squeeze (:func:`controllers.lateral_squeeze.lateral_squeeze`, sharing
+    """A lateral grasp's squeeze (:func:`controllers.hand.lateral_squeeze.lateral_squeeze`, sharing
     its total out to hold the weight with ``config.lateral_holding_forces``): the pressing
     fingers' forces, their mean (N) and, for the log, the contacts' friction reserve, which
     the record keeps."""

@@ -11,25 +11,25 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.finger_geometry import fingertips_at
 from controllers.grasp.score import SUCCESS_THRESHOLD
-from controllers.grasp.session import keep_contacts
-from controllers.hand_reach import CONTACT_SEPARATION
-from controllers.lateral_grasp import (
+from controllers.grasp.synthesis import keep_contacts
+from controllers.hand.finger_geometry import fingertips_at
+from controllers.hand.reachability import CONTACT_SEPARATION
+from controllers.preshape.lateral_grasp import (
     CandidateCache,
     SampledGrasp,
     sampled_lateral_grasp,
     three_contact_lateral_grasp,
 )
-from controllers.motion import approach
-from controllers.palm_candidates import (
+from controllers.preshape.moves import approach
+from controllers.preshape.palm_candidates import (
     LATERAL_ROLL_STEP,
     PalmPose,
     PoseSetting,
     lateral_poses,
     side_contacts,
 )
-from controllers.palm_pose import PalmPoseResult, search_poses
+from controllers.preshape.palm_search import PalmPoseResult, search_poses
 from fsm.config import TaskConfig
 from fsm.context import Episode
 from fsm.handlers.common import (
@@ -66,13 +66,13 @@ class PoseGrasps:
 
 def lateral_preshape(ep: Episode, skip: int = 0, gate: SetDownGate | None = None) -> str | None:
     """The lateral pre-shape: the palm pose beside the block from which the hand best reaches
-    its contacts (:func:`controllers.palm_pose.search_poses`), the hand then shaped outside them
-    and the palm moved there along its approach axis (``skip``: the next pose). The contacts
-    come from ``config.lateral_contacts``: "sampled-first" (default), the lowest-S_G contacts
-    the hand's sampled finger postures take at a pose
-    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, over
-    :func:`controllers.palm_candidates.lateral_poses`' wider set), each kept on its own face
-    afterwards (:func:`contact_arcs`), and where no pose has such a grasp the pinch pre-shape's
+    its contacts (:func:`controllers.preshape.palm_search.search_poses`), the hand then shaped
+    outside them and the palm moved there along its approach axis (``skip``: the next pose). The
+    contacts come from ``config.lateral_contacts``: "sampled-first" (default), the lowest-S_G
+    contacts the hand's sampled finger postures take at a pose
+    (:func:`controllers.preshape.lateral_grasp.sampled_lateral_grasp`, over
+    :func:`controllers.preshape.palm_candidates.lateral_poses`' wider set), each kept on its own
+    face afterwards (:func:`contact_arcs`), and where no pose has such a grasp the pinch pre-shape's
     (the surface points nearest its fingertips, kept a pad spacing apart on the side arcs);
     "sampled", the pinch's first and the sampled ones where no pose reaches those; "pinch", the
     pinch's only. The sampled grasps come in bands of S_G (:func:`_gated_preshapes`): the
@@ -168,7 +168,7 @@ def _sampled_preshape(
     only where none is taken, again with the poses at ``lateral_more_rolls`` after them (the
     hand upside down or its finger row vertical), whose rolls Posture Control then keeps
     (``ep.preshape_rolls``). ``three``: grasps of three contacts, the thumb's and two fingers'
-    (:func:`controllers.lateral_grasp.three_contact_lateral_grasp`)."""
+    (:func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`)."""
     params = ep.config.palm_pose
     grasps: dict[int, SampledGrasp] = {}
     rolls_of: dict[int, tuple[float, ...]] = {}
@@ -201,8 +201,8 @@ def _sampled_poses(
     three: bool = False,
 ) -> list[PalmPose]:
     """The palm poses beside the block at wrist ``rolls`` whose sampled grasp
-    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`) scores above ``band[0]`` and at
-    most ``band[1]``, the hand in the grasp's posture; each pose's grasp goes into ``grasps``
+    (:func:`controllers.preshape.lateral_grasp.sampled_lateral_grasp`) scores above ``band[0]`` and
+    at most ``band[1]``, the hand in the grasp's posture; each pose's grasp goes into ``grasps``
     (by the pose's id). ``three``: the three-contact grasps instead. The grasps at each pose
     are searched once per ``memo``."""
     if (rolls, three) not in memo.grasps:
@@ -252,9 +252,10 @@ def _pose_grasps(
     ep: Episode, rolls: tuple[float, ...], three: bool, cache: CandidateCache
 ) -> list[tuple[PalmPose, SampledGrasp | None]]:
     """Each palm pose beside the block at wrist ``rolls`` with its sampled grasp
-    (:func:`controllers.lateral_grasp.sampled_lateral_grasp`, or
-    :func:`~controllers.lateral_grasp.three_contact_lateral_grasp` when ``three``), None where
-    the hand's samples make none; the fingers' candidates at each pose shared through ``cache``."""
+    (:func:`controllers.preshape.lateral_grasp.sampled_lateral_grasp`, or
+    :func:`~controllers.preshape.lateral_grasp.three_contact_lateral_grasp` when ``three``), None
+    where the hand's samples make none; the fingers' candidates at each pose shared through
+    ``cache``."""
     params = replace(ep.config.palm_pose, lateral_rolls=rolls)
     query = reach_query(ep)
     where = PoseSetting(ep.world, ep.planning, ep.target, ep.coarse.goal.palm_rotation)
@@ -287,7 +288,7 @@ def _search_sampled(
 ) -> PalmPoseResult:
     """The first of ``poses`` (after ``skip``) from which the hand reaches its sampled grasp's
     contacts at their heights, that is approached without collision
-    (:func:`controllers.palm_pose.search_poses`) and whose grasp can set the block down at the
+    (:func:`controllers.preshape.palm_search.search_poses`) and whose grasp can set the block down at the
     place point, as the set-down ``gate`` asks (None: not asked)."""
     approach_of = partial(plan_approach, ep)
     if gate is not None:

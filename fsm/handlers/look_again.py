@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.arm_path import execute_path, plan_arm_path
-from controllers.cspace import CollisionChecker
-from controllers.grip import release
-from controllers.transport import retreat
+from controllers.deliver.carry import retreat
+from controllers.hand.grip import release
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.arm_path import execute_path, plan_arm_path
 from fsm.context import Episode
 from fsm.handlers.common import rise_clear, slides, top_to_clear
 from fsm.handlers.select_model import adopt_model, log_view
@@ -35,7 +35,7 @@ def park_arm(ep: Episode) -> str:
     with theirs). The path is planned among the blocks where they stand now; where the retreat
     left the hand within the planning clearance of something (a lateral hand backing out beside
     a neighbour), the palm first rises straight up until it is clear
-    (:func:`controllers.delivery.rise_until_clear`, as a set-down's transit starts), and stays
+    (:func:`controllers.deliver.plan.rise_until_clear`, as a set-down's transit starts), and stays
     risen when no path parks it (Coarse Reach then plans from a posture that is clear). Returns
     what was done, for the transition log."""
     if ep.parked_arm is None:

@@ -9,18 +9,24 @@ from dataclasses import replace
 
 import numpy as np
 
-from controllers.cspace import CollisionChecker
-from controllers.finger_assignment import ranked_assignments
-from controllers.grasp.session3d import GraspSynthesis3D
-from controllers.grasp.session_lateral import LateralSynthesis3D
+from controllers.grasp.synthesis3d import GraspSynthesis3D
+from controllers.grasp.synthesis_lateral import LateralSynthesis3D
 from controllers.grasp.task_height import HEIGHT_GAP
-from controllers.grip import PRE_CONTACT
-from controllers.hand_reach import ASSIGNMENTS_TRIED, grip_targets
-from controllers.motion import approach, approach_touches, reposition
-from controllers.palm_candidates import PalmPose, PoseSetting, lateral_poses, roll_seeds, top_poses
-from controllers.palm_pose import PalmPoseResult, SeedStart, search_poses, search_seeds
-from controllers.planning_model import PERCEIVED_GEOM
-from controllers.posture import apply_posture, solve_posture
+from controllers.hand.finger_assignment import ranked_assignments
+from controllers.hand.grip import PRE_CONTACT
+from controllers.hand.reachability import ASSIGNMENTS_TRIED, grip_targets
+from controllers.planning.belief import PERCEIVED_GEOM
+from controllers.planning.cspace import CollisionChecker
+from controllers.posture.solver import apply_posture, solve_posture
+from controllers.preshape.moves import approach, approach_touches, reposition
+from controllers.preshape.palm_candidates import (
+    PalmPose,
+    PoseSetting,
+    lateral_poses,
+    roll_seeds,
+    top_poses,
+)
+from controllers.preshape.palm_search import PalmPoseResult, SeedStart, search_poses, search_seeds
 from fsm.context import Episode
 from fsm.handlers.common import (
     block_site,
@@ -126,7 +132,7 @@ def posture_control(ep: Episode) -> Step:
 def search_other_heights(ep: Episode) -> tuple[PalmPoseResult, float] | None:
     """When no arm posture reaches a finished top 3-D grasp's contacts at the task's common
     height: the palm-pose search at each next-best common height in turn
-    (:meth:`~controllers.grasp.session3d.GraspSynthesis3D.height_options`,
+    (:meth:`~controllers.grasp.synthesis3d.GraspSynthesis3D.height_options`,
     ``config.height_tries`` in all, :data:`~controllers.grasp.task_height.HEIGHT_GAP` apart),
     once per synthesis. The first posture found, with how far (m) its height is above the
     task's; the controller keeps that height. None (the task's height kept) when none is found
@@ -155,11 +161,12 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     """An arm and hand configuration from which the current contacts are reachable, with the
     contacts given to the fingers, the search's label and the approach plan (None when the
     arm's own IK found the posture). A top grasp first follows the arm's IK from wrist-roll
-    seeds (:func:`controllers.palm_pose.search_seeds`), then, when that finds nothing, searches
-    :func:`controllers.palm_candidates.top_poses` (the hand IK starting from the hand's posture
+    seeds (:func:`controllers.preshape.palm_search.search_seeds`), then, when that finds nothing,
+    searches
+    :func:`controllers.preshape.palm_candidates.top_poses` (the hand IK starting from the hand's posture
     at each pose: a top grasp's contacts do not slide, and the sampled finger starts are for
     sliding contacts); a lateral grasp searches
-    :func:`controllers.palm_candidates.lateral_poses`. Over random scenes 0-29 (3-5 blocks, pi)
+    :func:`controllers.preshape.palm_candidates.lateral_poses`. Over random scenes 0-29 (3-5 blocks, pi)
     the palm-pose search took the episodes delivered from 25 to 26."""
     params = ep.config.palm_pose
     rotation = ep.coarse.goal.palm_rotation
@@ -210,7 +217,7 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
 
 def _posture_among(ep: Episode, poses: list[PalmPose]) -> PalmPoseResult:
     """A palm pose of ``poses`` from which the hand reaches the current contacts and that it
-    approaches without collision (:func:`controllers.palm_pose.search_poses`)."""
+    approaches without collision (:func:`controllers.preshape.palm_search.search_poses`)."""
     theta = ep.synthesis.theta
     return search_poses(
         reach_query(ep),

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.cspace import CollisionChecker
-from controllers.motion import reposition
-from controllers.palm_candidates import turn_about_vertical
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.moves import reposition
+from controllers.preshape.palm_candidates import turn_about_vertical
 from fsm.context import Episode
 from fsm.handlers.common import block_site, slides
 from fsm.handlers.lateral_preshape import lateral_preshape

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.finger_geometry import PerceivedPrism
-from controllers.planning_model import planning_model
-from controllers.reach import ReachTarget
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.planning.belief import planning_model
+from controllers.reach.coarse import ReachTarget
 from fsm.context import CycleRecord, Episode
 from fsm.perception import choose_blocks, other_footprints, perceive, place_for_cycle
 from fsm.recorder_protocol import VisionView

@@ -1,11 +1,11 @@
 """A lateral approach pitched for its set-down (section 5.2: "the path computed determines" the
 grasp; here the delivery's path too): before Coarse Reach commits to a lateral goal, it asks
 whether a hand holding the block as that goal would can set it down at the place point
-(:func:`controllers.delivery.plan_delivery` from the grasp's palm pose, without the transit).
+(:func:`controllers.deliver.plan.plan_delivery` from the grasp's palm pose, without the transit).
 A level hand sets its block down with its wrist and forearm low along the radial line, where a
 neighbour standing up to 25 cm inward of the place point is in their way; pitched down
-(:data:`controllers.reach.LATERAL_TILTS`) the forearm passes above it. Where the goal's hand has
-no set-down, the pitched goals are tried in order and the first whose hand has one is taken.
+(:data:`controllers.reach.coarse.LATERAL_TILTS`) the forearm passes above it. Where the goal's hand
+has no set-down, the pitched goals are tried in order and the first whose hand has one is taken.
 The palm-pose search then asks the same of each grasp it would take (:class:`SetDownGate`); where
 it passes over ``config.lateral_grasp_set_down_checks`` grasps for want of one, Coarse Reach
 takes the next pitch (:func:`next_tilt`, :func:`pitched_at_least`)."""
@@ -19,11 +19,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.delivery import plan_delivery
-from controllers.finger_assignment import FingerContacts
-from controllers.motion import ApproachPlan
-from controllers.palm_candidates import PoseSetting, lateral_poses
-from controllers.reach import (
+from controllers.deliver.plan import plan_delivery
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.preshape.moves import ApproachPlan
+from controllers.preshape.palm_candidates import PoseSetting, lateral_poses
+from controllers.reach.coarse import (
     LATERAL_TILTS,
     PITCH_TOLERANCE,
     ApproachGoal,
@@ -37,8 +37,8 @@ from fsm.context import Episode
 def goal_sets_down(ep: Episode, goal: ApproachGoal) -> bool:
     """Whether a hand that grasps the block from the lateral ``goal``'s pitch can set it down at
     the cycle's place point: the palm as the sampled pre-shape search's nearest pose puts it
-    (:func:`controllers.palm_candidates.lateral_poses` from the goal's posture: the smallest
-    sampled gap, not rolled, not shifted), the hand in the pinch pre-shape, the block held
+    (:func:`controllers.preshape.palm_candidates.lateral_poses` from the goal's posture: the
+    smallest sampled gap, not rolled, not shifted), the hand in the pinch pre-shape, the block held
     where it stands."""
     params = ep.config.palm_pose
     nearest = replace(
@@ -55,7 +55,7 @@ def goal_sets_down(ep: Episode, goal: ApproachGoal) -> bool:
 def grasp_sets_down(ep: Episode, qpos: NDArray[np.float64], check_lift: bool = True) -> bool:
     """Whether the hand in configuration ``qpos`` (arm and fingers), holding the block where it
     stands, can lift it and set it down at the cycle's place point
-    (:func:`controllers.delivery.plan_delivery` without the transit; without ``check_lift``,
+    (:func:`controllers.deliver.plan.plan_delivery` without the transit; without ``check_lift``,
     from the lifted block, the lift itself unchecked as Deliver's is)."""
     plan = plan_delivery(
         ep.world,
@@ -118,14 +118,14 @@ def set_down_gate(
 
 
 def next_tilt(pitch: float) -> float | None:
-    """The first of :data:`controllers.reach.LATERAL_TILTS` pitched further down than
+    """The first of :data:`controllers.reach.coarse.LATERAL_TILTS` pitched further down than
     ``pitch`` (rad), or None."""
     return next((t for t in LATERAL_TILTS if t > pitch + PITCH_TOLERANCE), None)
 
 
 def pitched_at_least(ep: Episode, plan: CoarseReachPlan, floor: float) -> CoarseReachPlan | None:
     """The first lateral coarse reach to a goal pitched ``floor`` (rad) or further down
-    (:data:`controllers.reach.LATERAL_TILTS`, in order) that has a path, chosen as ``plan``
+    (:data:`controllers.reach.coarse.LATERAL_TILTS`, in order) that has a path, chosen as ``plan``
     was; None when none has."""
     for tilt in LATERAL_TILTS:
         if tilt < floor - PITCH_TOLERANCE:
@@ -141,7 +141,7 @@ def pitched_at_least(ep: Episode, plan: CoarseReachPlan, floor: float) -> Coarse
 def pitch_for_set_down(ep: Episode, plan: CoarseReachPlan) -> tuple[CoarseReachPlan, str]:
     """``plan`` (a lateral coarse reach) when its goal's hand can set the block down
     (:func:`goal_sets_down`), else the first plan to a goal pitched further down
-    (:data:`controllers.reach.LATERAL_TILTS`) whose hand can, with why, for the log; ``plan``
+    (:data:`controllers.reach.coarse.LATERAL_TILTS`) whose hand can, with why, for the log; ``plan``
     itself when none can (Deliver then says so)."""
     if plan.goal is None or goal_sets_down(ep, plan.goal):
         return plan, ""

@@ -6,21 +6,21 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.fine_reach import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
-from controllers.finger_assignment import FingerContacts
 from controllers.grasp.score import SUCCESS_THRESHOLD
-from controllers.grasp.session import GraspSynthesis
-from controllers.grasp.session3d import GraspSynthesis3D
-from controllers.grasp.session_lateral import LateralSynthesis3D
+from controllers.grasp.synthesis import GraspSynthesis
+from controllers.grasp.synthesis3d import GraspSynthesis3D
+from controllers.grasp.synthesis_lateral import LateralSynthesis3D
 from controllers.grasp.trials3d import HeightBand
-from controllers.grip import GRIP_FORCE
-from controllers.hand_reach import (
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.hand.grip import GRIP_FORCE
+from controllers.hand.reachability import (
     BOTTOM_MARGIN,
     CONTACT_SEPARATION,
     MIN_PAD_SPACING,
     TOP_MARGIN,
     reachable_contacts,
 )
+from controllers.reach.fine import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
 from fsm.context import Episode
 from fsm.handlers.common import (
     contact_arcs,
@@ -40,13 +40,13 @@ def synthesis_for(
 ) -> GraspSynthesis | GraspSynthesis3D:
     """This cycle's grasp controller from contacts ``theta``: planar, or, with ``--model 3d``
     on a block tall enough for the band, 3-D from the contacts' heights ``tips_z`` (world).
-    A top grasp's heights move in the band :data:`~controllers.fine_reach.TOP_GRASP_DEPTHS`
+    A top grasp's heights move in the band :data:`~controllers.reach.fine.TOP_GRASP_DEPTHS`
     below the top and above the table margin, the common height set by the task (the perceived
     weight over the grip force; the pushes along the world's axes). A lateral grasp is planar,
     its contacts kept on their arcs; with ``TaskConfig.lateral_grasp_3d`` (off by default,
     fsm.config says why) it is 3-D, the contacts on their arcs at the heights the fingers take
     (the pre-shape's, then each reach test's;
-    :class:`~controllers.grasp.session_lateral.LateralSynthesis3D`), scored with the weight."""
+    :class:`~controllers.grasp.synthesis_lateral.LateralSynthesis3D`), scored with the weight."""
     separation = {"min_separation": CONTACT_SEPARATION, "separation_offset": robot.PAD_RADIUS}
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)

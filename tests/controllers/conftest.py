@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from benchmarks.bench_lateral_search import square_at_lateral_goal
-from controllers.arm_path import execute_path
-from controllers.finger_geometry import PerceivedPrism
-from controllers.finger_samples import FingerSamples
-from controllers.reach import ReachTarget, plan_coarse_reach
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.finger_samples import FingerSamples
+from controllers.reach.arm_path import execute_path
+from controllers.reach.coarse import ReachTarget, plan_coarse_reach
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 
@@ -48,8 +48,8 @@ def samples() -> FingerSamples:
 
 def grasps_beside(square, samples, search, squeeze: float) -> list:
     """(pose, grasp) at every palm pose beside single_square (``square``) where ``search``
-    (:func:`controllers.lateral_grasp.sampled_lateral_grasp` or its three-contact kin) finds a
-    grasp, the fingertips ``squeeze`` inside the faces."""
+    (:func:`controllers.preshape.lateral_grasp.sampled_lateral_grasp` or its three-contact kin)
+    finds a grasp, the fingertips ``squeeze`` inside the faces."""
     world, target, prism, poses = square
     pose_xy = (np.asarray(target.position_xy), target.yaw)
     found = [

@@ -1,4 +1,4 @@
-"""Tests of the arm's c-space collision checker and IK (controllers.cspace)."""
+"""Tests of the arm's c-space collision checker and IK (controllers.planning.cspace)."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import CollisionChecker, rotation_error
 from controllers.errors import ReachError
-from controllers.reach import PRESHAPE
+from controllers.planning.cspace import CollisionChecker, rotation_error
+from controllers.reach.coarse import PRESHAPE
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World

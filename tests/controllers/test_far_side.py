@@ -1,7 +1,7 @@
-"""A lateral palm from the block's far side (``controllers.reach.plan_coarse_reach``): on random
-scene 1 (3 blocks) a neighbour stands on the radial line between the arm's base and the target,
-so no lateral goal on the base's side has a collision-free posture (checked here with the same
-IK goals); the plan ends beyond the block with the palm facing back towards the base, the arm
+"""A lateral palm from the block's far side (``controllers.reach.coarse.plan_coarse_reach``): on
+random scene 1 (3 blocks) a neighbour stands on the radial line between the arm's base and the
+target, so no lateral goal on the base's side has a collision-free posture (checked here with the
+same IK goals); the plan ends beyond the block with the palm facing back towards the base, the arm
 follows it touching nothing, and the palm poses beside the block (Posture Control's and the
 pre-shape's) stay on that side."""
 
@@ -10,16 +10,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.arm_path import execute_path
-from controllers.cspace import CollisionChecker
-from controllers.palm_candidates import (
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.palm_candidates import (
     DEFAULT_PALM_POSE,
     PoseSetting,
     approach_origin,
     lateral_poses,
     robot_base_xy,
 )
-from controllers.reach import (
+from controllers.reach.arm_path import execute_path
+from controllers.reach.coarse import (
     LATERAL_TILTS,
     PRESHAPE,
     CoarseReachPlan,

@@ -1,11 +1,13 @@
-"""Tests of fine reach (controllers.fine_reach): harmonic fingertip fields and the closed loop
+"""Tests of fine reach (controllers.reach.fine): harmonic fingertip fields and the closed loop
 in simulation, from the coarse-reach posture above clutter3's target."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from controllers.fine_reach import (
+from controllers.planning.harmonic import ascend
+from controllers.reach.coarse import ReachTarget
+from controllers.reach.fine import (
     GRASP_DEPTH,
     OBSTACLE_MARGIN,
     TOUCH_STANDOFF,
@@ -14,8 +16,6 @@ from controllers.fine_reach import (
     fingertip_fields,
     project_to_surface,
 )
-from controllers.harmonic import ascend
-from controllers.reach import ReachTarget
 from hand_sim.scene import load_scene
 from hand_sim.world import World
 

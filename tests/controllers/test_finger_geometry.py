@@ -1,4 +1,4 @@
-"""The perceived prism's signed distance (controllers.finger_geometry.PerceivedPrism), against
+"""The perceived prism's signed distance (controllers.hand.finger_geometry.PerceivedPrism), against
 an independent computation: OpenCV's point-polygon test in the plane and the box's faces in
 height."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from controllers.finger_geometry import PerceivedPrism
+from controllers.hand.finger_geometry import PerceivedPrism
 
 
 def _independent(prism: PerceivedPrism, points: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The finger-span pre-test of the reach test (:mod:`controllers.finger_span`): a bound that
+"""The finger-span pre-test of the reach test (:mod:`controllers.hand.finger_span`): a bound that
 holds in every finger posture, and a pre-test that never refuses contacts the full reach test
 (hand IK) accepts."""
 
@@ -7,9 +7,14 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from controllers.finger_geometry import PerceivedPrism
-from controllers.finger_span import FingerSpans
-from controllers.hand_reach import CONTACT_TOLERANCE, SQUEEZE_REACH, check_reach, grip_targets
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.finger_span import FingerSpans
+from controllers.hand.reachability import (
+    CONTACT_TOLERANCE,
+    SQUEEZE_REACH,
+    check_reach,
+    grip_targets,
+)
 from hand_sim.indices import RobotIndices
 
 

@@ -1,4 +1,4 @@
-"""Tests of the n-D harmonic-function planner (controllers.harmonic)."""
+"""Tests of the n-D harmonic-function planner (controllers.planning.harmonic)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from controllers.errors import GridError
-from controllers.harmonic import GridSpec, ascend, solve_harmonic
+from controllers.planning.harmonic import GridSpec, ascend, solve_harmonic
 
 
 def bfs_distance(free: np.ndarray, goal: np.ndarray) -> np.ndarray:

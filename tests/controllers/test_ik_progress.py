@@ -1,11 +1,11 @@
-"""controllers.ik_progress: an IK reach is given up only when its error cannot reach the
+"""controllers.posture.ik_progress: an IK reach is given up only when its error cannot reach the
 tolerance at the rate it is falling, and never while it converges."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from controllers.ik_progress import STALL_WINDOW, ReachProgress
+from controllers.posture.ik_progress import STALL_WINDOW, ReachProgress
 
 
 def first_hopeless(errors: np.ndarray, tolerance: float, budget: int) -> int | None:

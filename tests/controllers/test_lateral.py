@@ -11,17 +11,17 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import CollisionChecker
-from controllers.finger_samples import Criteria, FingerSamples
 from controllers.grasp.composition import KnowledgeBased
 from controllers.grasp.errors import GraspError
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
-from controllers.grasp.session import GraspSynthesis, clamp_to_arcs
-from controllers.grip import backed_off_hand, balanced_shares, normal_squeeze
-from controllers.motion import BlockSite, clear_backoff
-from controllers.palm_candidates import lateral_arcs
-from controllers.posture import solve_posture
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
+from controllers.grasp.synthesis import GraspSynthesis, clamp_to_arcs
+from controllers.hand.finger_samples import Criteria, FingerSamples
+from controllers.hand.grip import backed_off_hand, balanced_shares, normal_squeeze
+from controllers.planning.cspace import CollisionChecker
+from controllers.posture.solver import solve_posture
+from controllers.preshape.moves import BlockSite, clear_backoff
+from controllers.preshape.palm_candidates import lateral_arcs
+from controllers.reach.coarse import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from fsm.layout import episode_scene
 from fsm.run import main
 from hand_sim import robot

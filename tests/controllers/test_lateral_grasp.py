@@ -1,7 +1,7 @@
-"""Lateral contacts from the hand's own reach (issue 23, controllers.lateral_grasp): the sampled
-grasp at a palm pose beside the block is checked against independent computations (the prism's
-signed distance, forward kinematics, S_G of the contacts on the unit-moment polygon, and the reach
-test's own hand IK), and a whole lateral episode from it is judged physically."""
+"""Lateral contacts from the hand's own reach (issue 23, controllers.preshape.lateral_grasp): the
+sampled grasp at a palm pose beside the block is checked against independent computations (the
+prism's signed distance, forward kinematics, S_G of the contacts on the unit-moment polygon, and the
+reach test's own hand IK), and a whole lateral episode from it is judged physically."""
 
 from __future__ import annotations
 
@@ -14,23 +14,23 @@ import numpy as np
 import pytest
 
 import fsm.handlers.fine_reach as fine_reach_handler
-from controllers.fine_reach import reach_along_normals
-from controllers.finger_geometry import PerceivedPrism, fingertips_at
 from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score
-from controllers.hand_reach import CONTACT_SEPARATION, TOP_MARGIN, check_reach
-from controllers.lateral_grasp import (
+from controllers.hand.finger_geometry import PerceivedPrism, fingertips_at
+from controllers.hand.reachability import CONTACT_SEPARATION, TOP_MARGIN, check_reach
+from controllers.preshape.lateral_grasp import (
     LateralSampling,
     sampled_lateral_grasp,
     three_contact_lateral_grasp,
 )
-from controllers.palm_candidates import (
+from controllers.preshape.palm_candidates import (
     DEFAULT_PALM_POSE,
     PoseSetting,
     face_arcs,
     lateral_poses,
 )
-from controllers.reach import ReachTarget, lateral_frame
+from controllers.reach.coarse import ReachTarget, lateral_frame
+from controllers.reach.fine import reach_along_normals
 from fsm.config import TaskConfig
 from fsm.context import EpisodeOptions
 from fsm.machine import run_episode
@@ -196,7 +196,7 @@ def test_a_block_near_the_arms_base_is_grasped_from_a_pitched_lateral_approach(
 ) -> None:
     """Random scene 26 (one block 0.49 m from the arm's base), --approach lateral: no level
     lateral goal exists (the hand would hit the arm's own forearm), so Coarse Reach pitches the
-    approach axis 15 deg down (controllers.reach.LATERAL_TILTS), says so in the log and the
+    approach axis 15 deg down (controllers.reach.coarse.LATERAL_TILTS), says so in the log and the
     summary, and the block is delivered, judged physically."""
     options = EpisodeOptions(
         scene="random", seed=26, blocks=1, approach="lateral", record=False, out=tmp_path
@@ -284,7 +284,7 @@ def test_the_lateral_gate_counts_from_the_thumbs_opposition_by_default() -> None
 
 
 def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -> None:
-    """Where the coarse reach's lateral goal is pitched down (controllers.reach.LATERAL_TILTS),
+    """Where the coarse reach's lateral goal is pitched down (controllers.reach.coarse.LATERAL_TILTS),
     every palm pose of the pre-shape's search is pitched the same (forward kinematics of its
     arm posture), faces the block along the radial line through the palm, and keeps the finger
     row level up to its roll."""

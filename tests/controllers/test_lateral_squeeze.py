@@ -1,12 +1,12 @@
-"""A lateral grasp's squeeze (controllers.lateral_squeeze): as hard in all as the balanced shares
-with their strongest finger at GRIP_FORCE, shared out to hold the weight, and its reserve
+"""A lateral grasp's squeeze (controllers.hand.lateral_squeeze): as hard in all as the balanced
+shares with their strongest finger at GRIP_FORCE, shared out to hold the weight, and its reserve
 against the hand-derived one of a thumb pressing below two fingers."""
 
 import numpy as np
 import pytest
 
-from controllers.grip import GRIP_FORCE, balanced_shares
-from controllers.lateral_squeeze import lateral_squeeze
+from controllers.hand.grip import GRIP_FORCE, balanced_shares
+from controllers.hand.lateral_squeeze import lateral_squeeze
 
 # two fingers on one face (x = +2 cm, y = +-1.5 cm), the thumb on the opposite face, the block's
 # centre at the origin

@@ -1,8 +1,8 @@
 """A pitched lateral palm keeps its face clear of the block (issue 23): the palm face's depth
-along the approach axis (:func:`controllers.palm_candidates.palm_plate_depth`, a linear
+along the approach axis (:func:`controllers.preshape.palm_candidates.palm_plate_depth`, a linear
 programme) against a brute-force count over points of the prism, and the pitched palm poses
-of :func:`~controllers.palm_candidates.lateral_poses` against MuJoCo's own distance between the
-palm's collision box and the block."""
+of :func:`~controllers.preshape.palm_candidates.lateral_poses` against MuJoCo's own distance between
+the palm's collision box and the block."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from controllers.grasp.polygon import Polygon
-from controllers.palm_candidates import (
+from controllers.preshape.palm_candidates import (
     DEFAULT_PALM_POSE,
     PoseSetting,
     lateral_poses,
     palm_half_face,
     palm_plate_depth,
 )
-from controllers.reach import ReachTarget, lateral_frame
+from controllers.reach.coarse import ReachTarget, lateral_frame
 from hand_sim import robot
 
 #: The palm's collision box, half its face (m): models/hand.xml's palm_collision.

@@ -1,4 +1,4 @@
-"""Tests of mink posture control (controllers.posture) on the simulated hand."""
+"""Tests of mink posture control (controllers.posture.solver) on the simulated hand."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from controllers.errors import PostureError
-from controllers.manipulability import finger_manipulability, world_log_manipulability
-from controllers.posture import apply_posture, solve_posture
+from controllers.posture.manipulability import finger_manipulability, world_log_manipulability
+from controllers.posture.solver import apply_posture, solve_posture
 from hand_sim.indices import RobotIndices
 
 

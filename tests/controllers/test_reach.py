@@ -1,5 +1,5 @@
-"""Tests of coarse reach, arm paths and delivery (controllers.reach, controllers.arm_path,
-controllers.delivery) on the simulated arm in clutter3."""
+"""Tests of coarse reach, arm paths and delivery (controllers.reach.coarse,
+controllers.reach.arm_path, controllers.deliver.plan) on the simulated arm in clutter3."""
 
 from __future__ import annotations
 
@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from controllers.arm_path import ArmPath, execute_path, plan_arm_path
-from controllers.cspace import CollisionChecker
-from controllers.delivery import SET_DOWN_HOVER, plan_delivery, reachable_turn
+from controllers.deliver.plan import SET_DOWN_HOVER, plan_delivery, reachable_turn
 from controllers.errors import ReachError
-from controllers.fine_reach import fine_reach
 from controllers.grasp.objects import paper_object
-from controllers.reach import (
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.arm_path import ArmPath, execute_path, plan_arm_path
+from controllers.reach.coarse import (
     LATERAL_GOAL_FALLBACKS,
     LATERAL_TILTS,
     PRESHAPE,
@@ -29,6 +28,7 @@ from controllers.reach import (
     plan_coarse_reach,
     solve_goal,
 )
+from controllers.reach.fine import fine_reach
 from fsm.layout import episode_scene
 from hand_sim import robot
 from hand_sim.scene import load_scene
@@ -325,7 +325,7 @@ def test_a_post_where_the_held_hand_would_set_down_turns_the_hand_about_the_plac
 ):
     """A post stands 3 cm beyond where a fingertip would be at the set-down: the hand as it holds
     the block (and turned with the waist) cannot set it down; turned further about the place
-    point it can (controllers.delivery.SET_DOWN_TURNS, each moved to the nearest turn the arm
+    point it can (controllers.deliver.plan.SET_DOWN_TURNS, each moved to the nearest turn the arm
     can hold the tilted hand at; before them: "no collision-free posture above the place
     point"), and the carried block touches nothing on the way (independent
     check)."""

@@ -1,5 +1,5 @@
-"""controllers.reduced_ik: mink's differential-IK step solved on the moving joints only gives
-mink's own step (mink.solve_ik with the other joints frozen by equality constraints)."""
+"""controllers.posture.reduced_ik: mink's differential-IK step solved on the moving joints only
+gives mink's own step (mink.solve_ik with the other joints frozen by equality constraints)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import mink
 import numpy as np
 import pytest
 
-from controllers.posture import (
+from controllers.posture.reduced_ik import ReducedStep
+from controllers.posture.solver import (
     IK_DAMPING,
     IK_DT,
     PAD_CENTRE_COST,
@@ -19,7 +20,6 @@ from controllers.posture import (
     mink_velocity,
     moving_dofs,
 )
-from controllers.reduced_ik import ReducedStep
 from hand_sim import robot
 from hand_sim.indices import RobotIndices
 

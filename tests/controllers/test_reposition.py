@@ -1,15 +1,15 @@
 """How far a lateral reposition backs a posture out along the approach axis
-(:func:`controllers.motion.clear_back`, issue 23): the last step of an independent walk at which
-the hand is still clear, for the posture the arm is at and for the new one it goes to."""
+(:func:`controllers.preshape.moves.clear_back`, issue 23): the last step of an independent walk at
+which the hand is still clear, for the posture the arm is at and for the new one it goes to."""
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
 
-from controllers.cspace import CollisionChecker
-from controllers.motion import BlockSite, clear_back
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.moves import BlockSite, clear_back
+from controllers.reach.coarse import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from fsm.layout import episode_scene
 from hand_sim import robot
 from hand_sim.world import World

@@ -11,16 +11,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import CollisionChecker
-from controllers.delivery import SET_DOWN_HOVER, plan_delivery
+from controllers.deliver.plan import SET_DOWN_HOVER, plan_delivery
 from controllers.errors import ReachError
-from controllers.palm_candidates import (
+from controllers.planning.cspace import CollisionChecker
+from controllers.preshape.palm_candidates import (
     DEFAULT_PALM_POSE,
     PoseSetting,
     lateral_poses,
     robot_base_xy,
 )
-from controllers.reach import (
+from controllers.reach.coarse import (
     PRESHAPE,
     ReachTarget,
     goal_poses,

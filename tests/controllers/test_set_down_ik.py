@@ -1,4 +1,4 @@
-"""The set-down's arm IK (controllers.delivery.set_down_ik) on random scene 11 (three blocks):
+"""The set-down's arm IK (controllers.deliver.plan.set_down_ik) on random scene 11 (three blocks):
 the lateral grasp holds the hand with the arm's waist near its end stop (2.9 rad), and the
 place point lies further round, so the transit's start turned with the waist asks for 3.5 rad.
 The joint clips the seed and the damped least squares stalls with the palm 0.40 m short; the
@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.cspace import CollisionChecker, rotation_error
-from controllers.delivery import set_down_ik
-from controllers.reach import PRESHAPE
+from controllers.deliver.plan import set_down_ik
+from controllers.planning.cspace import CollisionChecker, rotation_error
+from controllers.reach.coarse import PRESHAPE
 from fsm.layout import episode_scene
 from hand_sim.world import World
 

@@ -11,16 +11,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import CollisionChecker
-from controllers.fine_reach import fine_reach, obstacle_grid
-from controllers.finger_geometry import PerceivedPrism
-from controllers.hand_reach import MIN_PAD_SPACING, check_reach
-from controllers.harmonic import GridSpec
-from controllers.motion import BlockSite, approach_touches, move_backed_out
-from controllers.planning_model import PERCEIVED_GEOM, planning_model
-from controllers.posture import CLEARANCE_SLACK, apply_posture, solve_posture
-from controllers.reach import PRESHAPE, ReachTarget
-from controllers.transport import held_load, timed_path
+from controllers.deliver.carry import held_load, timed_path
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.reachability import MIN_PAD_SPACING, check_reach
+from controllers.planning.belief import PERCEIVED_GEOM, planning_model
+from controllers.planning.cspace import CollisionChecker
+from controllers.planning.harmonic import GridSpec
+from controllers.posture.solver import CLEARANCE_SLACK, apply_posture, solve_posture
+from controllers.preshape.moves import BlockSite, approach_touches, move_backed_out
+from controllers.reach.coarse import PRESHAPE, ReachTarget
+from controllers.reach.fine import fine_reach, obstacle_grid
 from hand_sim import robot
 from hand_sim.scene import load_scene
 from hand_sim.world import World
@@ -212,7 +212,7 @@ def test_wrist_load_ignores_the_arms_own_acceleration() -> None:
 
 
 def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_the_target() -> None:
-    """controllers.motion.approach_touches: the pre-shaped hand's straight 8 cm approach to a
+    """controllers.preshape.moves.approach_touches: the pre-shaped hand's straight 8 cm approach to a
     palm pose just above single_square's block meets a post standing where a fingertip passes
     (a neighbour it would push) and nothing else; without the post it meets nothing (the block
     itself, perceived or true, and the table are not neighbours)."""
@@ -254,7 +254,7 @@ def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_t
 
 
 def test_the_arm_moves_between_backed_out_postures_straight_when_clear_else_harmonic() -> None:
-    """controllers.motion.move_backed_out, above clutter3's target: a small turn of the waist
+    """controllers.preshape.moves.move_backed_out, above clutter3's target: a small turn of the waist
     and the wrist, well clear of everything, is taken in a straight joint-space line; with a
     clearance no line can keep (19 cm: the block below is nearer), the way back is planned as a
     harmonic path instead. Both end at their goal posture and push no block."""

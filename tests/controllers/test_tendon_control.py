@@ -1,4 +1,4 @@
-"""controllers.tendon_control: the tension allocation keeps every tension in [T0, T_max] and
+"""controllers.hand.tendon_control: the tension allocation keeps every tension in [T0, T_max] and
 gives the requested torque (clipped at r (T_max - T0)); the torque estimate from the tensions is
 its inverse; the gains are models/hand.xml's servos' and the tendon hand can deliver their
 torques; the closed loop tracks joint targets on the hand alone; a step smaller than the
@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.tendon_control import (
+from controllers.hand.tendon_control import (
     PRETENSION,
     SERVO_KP,
     SERVO_TORQUE_LIMIT,

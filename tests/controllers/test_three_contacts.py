@@ -1,8 +1,9 @@
-"""Three-contact lateral grasps (issue 23; controllers.lateral_grasp.three_contact_lateral_grasp):
-the thumb against two fingers, the third finger held clear of the block. Eq. 13 is checked
-against its closed-form values, the grasps found beside single_square against independent
-computations (S_G of their contacts, forward kinematics of the hand's links against the prism),
-and the reach test, the finger assignment and the grip plan keep the idle finger where it is."""
+"""Three-contact lateral grasps (issue 23;
+controllers.preshape.lateral_grasp.three_contact_lateral_grasp): the thumb against two fingers, the
+third finger held clear of the block. Eq. 13 is checked against its closed-form values, the grasps
+found beside single_square against independent computations (S_G of their contacts, forward
+kinematics of the hand's links against the prism), and the reach test, the finger assignment and the
+grip plan keep the idle finger where it is."""
 
 from __future__ import annotations
 
@@ -10,12 +11,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.finger_assignment import ranked_assignments
-from controllers.finger_geometry import finger_clearance, fingertips_at
 from controllers.grasp.score import SUCCESS_THRESHOLD, grasp_score, opposition_floor
-from controllers.grip import GRIP_FORCE, plan_grip
-from controllers.hand_reach import check_reach
-from controllers.lateral_grasp import IDLE_CLEARANCE, three_contact_lateral_grasp
+from controllers.hand.finger_assignment import ranked_assignments
+from controllers.hand.finger_geometry import finger_clearance, fingertips_at
+from controllers.hand.grip import GRIP_FORCE, plan_grip
+from controllers.hand.reachability import check_reach
+from controllers.preshape.lateral_grasp import IDLE_CLEARANCE, three_contact_lateral_grasp
 from hand_sim import robot
 from tests.controllers.conftest import grasps_beside
 

@@ -15,9 +15,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers.cspace import PALM_SITE
-from controllers.finger_geometry import fingertips_at, pad_normals
-from controllers.hand_reach import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
+from controllers.hand.finger_geometry import fingertips_at, pad_normals
+from controllers.hand.reachability import CONTACT_TOLERANCE, MAX_PAD_ANGLE, grip_targets
+from controllers.planning.cspace import PALM_SITE
 from experiments.physics.hand_placement import (
     MAX_PALM_TILT,
     SEEDS_TRIED,

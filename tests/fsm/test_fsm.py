@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.finger_assignment import assign_fingers
 from controllers.grasp import paper_object
 from controllers.grasp.composition import KnowledgeBased
-from controllers.grasp.session import GraspSynthesis, separate_contacts
+from controllers.grasp.synthesis import GraspSynthesis, separate_contacts
 from controllers.grasp.trials import run_trials
+from controllers.hand.finger_assignment import assign_fingers
 from fsm import handlers
 from fsm.context import EpisodeOptions
 from fsm.machine import run_episode
@@ -180,7 +180,7 @@ def test_a_3d_grasp_holds_the_block_at_its_contacts_heights_and_delivers_it(tmp_
     """``--model 3d``: the contacts the hand takes are the 3-D controller's, below the planar
     grasp depth, in the top grasp's band; the block is really delivered (the judge's
     measurements), and the recording shows the synthesis."""
-    from controllers.fine_reach import TOP_GRASP_DEPTHS
+    from controllers.reach.fine import TOP_GRASP_DEPTHS
 
     code = main(["--scene", "single_square", "--model", "3d", "--out", str(tmp_path)])
     s = json.loads((tmp_path / "summary.json").read_text())

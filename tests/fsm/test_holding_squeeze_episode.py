@@ -1,9 +1,9 @@
 """A lateral squeeze that holds the block's weight (issue 23; ``TaskConfig.lateral_holding_forces``,
 ``controllers.grasp.holding``): on random scene 85 (two blocks) the lateral hand presses from
 different heights on faces that do not oppose one another. The least-squares balance of the
-planned contacts (``controllers.grip.balanced_shares``) leaves a net push that the table carries
-until the lift, and the block slips out of the hand as it rises; the normal forces chosen with
-the weight and the friction cones in the balance lift it and deliver it with the first grasp.
+planned contacts (``controllers.hand.grip.balanced_shares``) leaves a net push that the table
+carries until the lift, and the block slips out of the hand as it rises; the normal forces chosen
+with the weight and the friction cones in the balance lift it and deliver it with the first grasp.
 Judged physically (fsm.judge, the wrist sensor at the lift)."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """A lateral hand leaving a block standing rises clear of its top before it backs off (issue 23;
-``TaskConfig.lateral_retreat_rise``, ``controllers.transport.retreat(clear_top=...)``): on
+``TaskConfig.lateral_retreat_rise``, ``controllers.deliver.carry.retreat(clear_top=...)``): on
 random scene 80 (two blocks) the lateral grasp sets the triangle down upright at the place
 point; backing off first drags it away with the released fingers and tips it, rising first
 leaves it standing where it was set down. Judged physically (fsm.judge). Both with the

@@ -1,5 +1,5 @@
 """A pitched lateral palm keeps its face clear of the block (issue 23;
-``controllers.palm_candidates.palm_plate_depth``): on random scene 47 (two blocks) the arm
+``controllers.preshape.palm_candidates.palm_plate_depth``): on random scene 47 (two blocks) the arm
 reaches a lateral goal only with the approach axis pitched 45 deg down; with the palm poses'
 gap counted from the palm's centre line every pose put the palm's upper edge inside the
 block, no approach cleared and the episode failed without a pre-shape. Judged physically."""

@@ -15,11 +15,11 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from controllers.arm_path import execute_path
-from controllers.cspace import CollisionChecker
-from controllers.grip import move_hand
-from controllers.reach import PRESHAPE, ReachTarget, goal_poses, solve_goal
-from controllers.transport import move_palm
+from controllers.deliver.carry import move_palm
+from controllers.hand.grip import move_hand
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.arm_path import execute_path
+from controllers.reach.coarse import PRESHAPE, ReachTarget, goal_poses, solve_goal
 from fsm.recorder_protocol import SynthesisRecord, VisionView
 from fsm.recording import FORCE_ARROW_SCALE, EpisodeRecorder
 from hand_sim import robot

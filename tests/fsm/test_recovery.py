@@ -308,7 +308,7 @@ def test_a_place_point_the_held_hand_cannot_set_down_at_is_reached_turned(tmp_pa
     """Random scene 18: at its place point a finger of the hand, as it holds the block (and
     turned with the waist), would land on the block beside it, so Deliver once found no set-down
     posture there (under the old rule it went to a free slot 8 cm away). Turned about the place
-    point (controllers.delivery.SET_DOWN_TURNS) the hand clears it: even with --place-fallback
+    point (controllers.deliver.plan.SET_DOWN_TURNS) the hand clears it: even with --place-fallback
     nearest the block is set down where it was asked, judged physically there, not elsewhere.
     The planar grasp model's hold, the one this scene was found with. (Since Posture Control's
     hold keeps the pads out of the block the grasp here differs and its set-down needs no turn

@@ -1,6 +1,6 @@
 """A lateral pre-shape reached without sweeping the fingers through the block (issue 23;
-``controllers.motion.clear_back``, ``MotionParams.backin_as_clear``): on random scene 93 (two
-blocks) the move from the coarse goal to the pre-shape pose, backed out only as far as the hand
+``controllers.preshape.moves.clear_back``, ``MotionParams.backin_as_clear``): on random scene 93
+(two blocks) the move from the coarse goal to the pre-shape pose, backed out only as far as the hand
 could back out of the coarse goal, pushed the irregular hexagon centimetres and the thumb missed
 it (``tests/fsm/test_recovery.py`` keeps that episode, off, for the look-again recovery). With
 the new posture backed out as far as its straight approach is clear, every pad touches the block

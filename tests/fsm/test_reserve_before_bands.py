@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from controllers.grasp.score import SUCCESS_THRESHOLD
-from controllers.lateral_squeeze import lateral_squeeze
+from controllers.hand.lateral_squeeze import lateral_squeeze
 from fsm import handlers
 from fsm.config import DEFAULT_CONFIG
 from fsm.handlers.common import block_centre, planar_normal_forces

@@ -1,8 +1,8 @@
 """An empty hand whose wrist roll cannot turn where it is turns it above (issue 23), on random
 scene 200: Coarse Reach ends at a lateral goal with the wrist rolled 90 deg, and the palm pose
 the pre-shape search takes is rolled 170 deg. Between the two backed-out postures
-(``controllers.motion.move_backed_out``) neither a straight line nor a harmonic path with the
-roll turned at the start or at the goal is clear: the fingers would sweep through a neighbour.
+(``controllers.preshape.moves.move_backed_out``) neither a straight line nor a harmonic path with
+the roll turned at the start or at the goal is clear: the fingers would sweep through a neighbour.
 Before, the arm went "straight there anyway" and knocked the neighbour over (132 mm; the picked
 block was then delivered 0.8 mm from its place point and the episode failed for the
 neighbour). Now the palm rises straight up until the roll turns clear and a harmonic path
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import controllers.motion as motion
+import controllers.preshape.moves as motion
 from fsm import handlers
 from fsm.states import Failure, State, TaskFailedError
 from hand_sim.scene import load_scene

@@ -1,6 +1,6 @@
 """A set-down aimed off the place point, within the judge's tolerance, to keep the descent's
-clearance (issue 23; ``controllers.set_down_aim``): on random scene 40 (three blocks) the only
-set-down the lateral palm holding the rectangle can take lowers the ring finger's proximal link
+clearance (issue 23; ``controllers.deliver.set_down_aim``): on random scene 40 (three blocks) the
+only set-down the lateral palm holding the rectangle can take lowers the ring finger's proximal link
 within 2 mm of the irregular pentagon beside the place point, inside the 3 mm every hand link
 keeps on the way down, and the episode failed with no set-down posture. Aimed a few millimetres
 away from the pentagon, along the normal between the two, the block is set down, judged
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from controllers.set_down_aim import MAX_AIM_OFFSET
+from controllers.deliver.set_down_aim import MAX_AIM_OFFSET
 from tests.fsm.lateral import lateral_episode
 
 SEED = 40

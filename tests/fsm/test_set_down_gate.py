@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from controllers.delivery import plan_delivery
+from controllers.deliver.plan import plan_delivery
 from fsm.config import TaskConfig
 from fsm.handlers.set_down_pitch import SetDownGate, next_tilt, set_down_gate
 from hand_sim.world import World
@@ -93,7 +93,7 @@ def test_a_strict_gate_once_spent_passes_over_every_pose_unasked(poses) -> None:
 
 
 def test_the_next_pitch_is_the_next_of_the_lateral_tilts_further_down() -> None:
-    # controllers.reach.LATERAL_TILTS: 15, 30 and 45 deg down
+    # controllers.reach.coarse.LATERAL_TILTS: 15, 30 and 45 deg down
     assert np.degrees(next_tilt(0.0)) == pytest.approx(15.0)
     assert np.degrees(next_tilt(-1e-9)) == pytest.approx(15.0)  # a level goal's pitch
     assert np.degrees(next_tilt(np.radians(15.0))) == pytest.approx(30.0)

@@ -1,4 +1,4 @@
-"""A set-down past the waist's end stop (issue 23; controllers.delivery.set_down_ik): on random
+"""A set-down past the waist's end stop (issue 23; controllers.deliver.plan.set_down_ik): on random
 scene 11 (three blocks) the lateral grasp holds the trapezoid with the arm's waist near its
 2.9 rad limit, and the place point lies further round. The transit's start turned with the
 waist was the only IK seed of the set-down, and the joint clipped it: "no set-down posture at

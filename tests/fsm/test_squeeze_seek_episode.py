@@ -1,5 +1,5 @@
 """A lateral squeeze whose light finger loses its face closes it again (issue 23;
-``TaskConfig.lateral_squeeze_seek``, ``controllers.grip.squeeze(seek=True)``): on
+``TaskConfig.lateral_squeeze_seek``, ``controllers.hand.grip.squeeze(seek=True)``): on
 single_irregular_triangle at seed 0 the balanced squeeze asks the middle finger for a few tenths
 of a newton; without seeking, the force loop leaves it short of the face and the squeeze fails;
 with it the squeeze settles and the block is delivered, judged physically."""

@@ -4,7 +4,7 @@
 or the block through a neighbour. Before, every set-down posture's transit failed there and the
 episode ended "no set-down posture at the place point asked for ...: transit: turning the
 wrist roll at the start collides". Now the palm rises straight up, the block in the hand,
-until the roll turns clear (``controllers.arm_path.roll_turned_above``); the block is carried,
+until the roll turns clear (``controllers.reach.arm_path.roll_turned_above``); the block is carried,
 set down and judged physically (fsm.judge: within 20 mm of the place point, upright, no
 finger on it, no neighbour moved)."""
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-import controllers.delivery as delivery
+import controllers.deliver.plan as delivery
 from tests.fsm.lateral import lateral_episode
 
 SEED = 105

@@ -1,4 +1,4 @@
-"""The lateral grasp's 3-D controller (controllers.grasp.session_lateral): its contacts stay on
+"""The lateral grasp's 3-D controller (controllers.grasp.synthesis_lateral): its contacts stay on
 their arcs at the heights given, it reduces to the planar lateral grasp when the heights are
 equal, and it scores in 3-D with the weight's task."""
 
@@ -12,8 +12,8 @@ from controllers.grasp.objects import paper_object
 from controllers.grasp.prism3d import physical_tasks
 from controllers.grasp.registry import make_composer
 from controllers.grasp.score3d import grasp_score_3d
-from controllers.grasp.session import GraspSynthesis, clamp_to_arcs
-from controllers.grasp.session_lateral import LateralSynthesis3D
+from controllers.grasp.synthesis import GraspSynthesis, clamp_to_arcs
+from controllers.grasp.synthesis_lateral import LateralSynthesis3D
 from controllers.grasp.trials3d import HeightBand
 
 HEIGHT = 0.06

@@ -56,7 +56,7 @@ def test_spread_shifts_keep_the_best_and_skip_near_duplicates():
 
 
 def test_a_finished_synthesis_offers_its_task_height_first_then_common_shifts_in_the_band():
-    from controllers.grasp.session3d import GraspSynthesis3D
+    from controllers.grasp.synthesis3d import GraspSynthesis3D
 
     band = HeightBand.below_top(HEIGHT, 0.04, 0.06)
     z0 = np.array([0.05, 0.055, 0.045, 0.058])

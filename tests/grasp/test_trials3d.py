@@ -189,7 +189,7 @@ def test_a_control_state_has_theta_then_height_gradients():
 
 @pytest.mark.parametrize("controller", ["kb", "pi"])
 def test_one_grasp_stepped_is_the_trial_runner_and_the_task_then_sets_its_height(controller):
-    from controllers.grasp.session3d import GraspSynthesis3D
+    from controllers.grasp.synthesis3d import GraspSynthesis3D
 
     poly = paper_object("pentagon")
     band = HeightBand.below_top(HEIGHT, 0.04, 0.06)

@@ -16,7 +16,7 @@ from dm_control import mjcf
 
 from benchmarks import hand_reachability as reach
 from benchmarks.lift_rig import LIFT, LIFT_STEPS, LIFT_TIME, SQUEEZE, TENDON_HAND, lift_rig
-from controllers.tendon_control import TendonHandController, TendonLayout
+from controllers.hand.tendon_control import TendonHandController, TendonLayout
 from hand_sim import robot
 
 MODELS = Path(__file__).resolve().parents[2] / "models"

@@ -1,11 +1,11 @@
 """Delivery (section 5.2, "Deliver"): carry a grasped block to a place point on the table.
 
 "The path is computed by the same harmonic path planning algorithm used in the coarse reach
-module" (:func:`controllers.arm_path.plan_arm_path`), with the block moving rigidly with the
+module" (:func:`controllers.reach.arm_path.plan_arm_path`), with the block moving rigidly with the
 palm: straight up to :data:`CARRY_HEIGHT` (higher when a taller neighbour is still within the
 planning clearance there: :func:`rise_until_clear`), a harmonic transit, and straight down until
 the block hovers :data:`SET_DOWN_HOVER` above the table (the rest of the set-down is sensed,
-:mod:`controllers.transport`).
+:mod:`controllers.deliver.carry`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from controllers.arm_path import (
+from controllers.deliver.set_down_aim import MAX_AIM_OFFSET, DescentMiss, descent_miss
+from controllers.errors import ReachError
+from controllers.planning.cspace import (
+    DEFAULT_CLEARANCE,
+    CollisionChecker,
+    IKResult,
+    rotation_error,
+)
+from controllers.reach.arm_path import (
     DEFAULT_RESOLUTION,
     ROLL_AT_START_COLLIDES,
     ArmPath,
@@ -27,16 +35,13 @@ from controllers.arm_path import (
     risen_postures,
     roll_turned_above,
 )
-from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult, rotation_error
-from controllers.errors import ReachError
-from controllers.reach import seeded_postures
-from controllers.set_down_aim import MAX_AIM_OFFSET, DescentMiss, descent_miss
+from controllers.reach.coarse import seeded_postures
 from hand_sim import robot
 from hand_sim.world import World
 
 #: Delivery: height (m) of the carried block's bottom above the table during the transit (not
-#: the grasp's lift, :data:`controllers.transport.LIFT_HEIGHT`), and where the planned set-down
-#: ends (the last part is sensed: controllers.transport).
+#: the grasp's lift, :data:`controllers.deliver.carry.LIFT_HEIGHT`), and where the planned set-down
+#: ends (the last part is sensed: controllers.deliver.carry).
 CARRY_HEIGHT = 0.05
 SET_DOWN_HOVER = 0.02
 #: Clearance (m) the hand keeps from everything but the table all the way down to the hover.
@@ -57,7 +62,7 @@ SET_DOWN_TURNS = tuple(np.deg2rad([45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.
 #: SET_DOWN_TURNS gives a set-down, each is moved to the nearest turn the arm can hold a hand
 #: tilted more than this at, and those are tried.
 ALIGNED_TILT = 1e-3
-#: Set-downs aimed off the place point tried at most (controllers.set_down_aim).
+#: Set-downs aimed off the place point tried at most (controllers.deliver.set_down_aim).
 MAX_AIMED = 12
 #: Turns (rad) closer than this are the same turn.
 SAME_TURN = 1e-3
@@ -286,8 +291,8 @@ def plan_delivery(
             for t, s in zip(held, seeds, strict=True)
         )
         # then each of those aimed off the place point, away from what it passed too near
-        # (controllers.set_down_aim), in the order they were found; a set-down aimed off that
-        # passes something else too near is aimed further, within MAX_AIM_OFFSET in all
+        # (controllers.deliver.set_down_aim), in the order they were found; a set-down aimed off
+        # that passes something else too near is aimed further, within MAX_AIM_OFFSET in all
         tried = 0
         while tried < min(len(misses), MAX_AIMED):  # misses grows as aimed ones are tried
             miss, t, s, aim = misses[tried]
@@ -405,8 +410,9 @@ def set_down_ik(
 ) -> IKResult:
     """The arm posture holding the palm at ``p_high`` with orientation ``R``: by the damped least
     squares from ``seed`` (the transit's start turned with the waist), and where that stalls or
-    collides, from the coarse reach's elbow-up seeds (:func:`controllers.reach.seeded_postures`,
-    ``seed``'s wrist roll), the collision-free solution nearest ``seed``.
+    collides, from the coarse reach's elbow-up seeds
+    (:func:`controllers.reach.coarse.seeded_postures`, ``seed``'s wrist roll), the collision-free
+    solution nearest ``seed``.
 
     From ``seed`` alone the least squares stalls where the waist's turn carries it past its
     limit: a lateral hand held with the waist near its end stop and turned further (the joint
@@ -443,7 +449,7 @@ def _set_down_path(
     clearance, and the posture at ``p_high`` may be within ``checker``'s of something: the
     transit then ends above it, where the hand is clear (:func:`rise_until_clear`). A way down
     that passes something nearer than ``descent``'s clearance appends the closest pair to
-    ``misses`` (:func:`controllers.set_down_aim.descent_miss`), when given."""
+    ``misses`` (:func:`controllers.deliver.set_down_aim.descent_miss`), when given."""
     clearance = checker.clearance
     h = set_down_ik(checker, p_high, R, seed)
     d = checker.solve_ik(p_high + drop, R, h.q)

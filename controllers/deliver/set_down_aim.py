@@ -2,7 +2,7 @@
 clearance (issue 23).
 
 A carried block is lowered with every link of the hand :data:`SET_DOWN_CLEARANCE` from the
-blocks around it (:func:`controllers.delivery.plan_delivery`). Where the only set-downs the
+blocks around it (:func:`controllers.deliver.plan.plan_delivery`). Where the only set-downs the
 hand can hold pass a neighbour by a little less than that, the place point is not a wall: the
 task asks for the block within 2 cm of it (:data:`fsm.judge.PLACE_TOLERANCE`). The set-down is
 then aimed off the point, away from that neighbour along the horizontal part of the pair's
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import VERIFY_STEP, interpolate_path
-from controllers.cspace import CollisionChecker, Nearest
+from controllers.planning.cspace import CollisionChecker, Nearest
+from controllers.reach.arm_path import VERIFY_STEP, interpolate_path
 
 #: Largest distance (m) a set-down is aimed off the place point: a quarter of the judge's 2 cm
 #: tolerance, leaving the rest to how far the block moves as it is lowered and released (up to
@@ -59,7 +59,7 @@ class DescentMiss:
 
 def descent_miss(checker: CollisionChecker, path: NDArray[np.float64]) -> DescentMiss | None:
     """The robot-environment pair that comes closest along ``path`` (k, 5; checked every
-    :data:`~controllers.arm_path.VERIFY_STEP` rad) within ``checker``'s clearance; None when
+    :data:`~controllers.reach.arm_path.VERIFY_STEP` rad) within ``checker``'s clearance; None when
     nothing comes within it, or when at some posture the robot's own links do (no horizontal
     move parts those)."""
     closest: Nearest | None = None

@@ -1,7 +1,7 @@
 """Can the hand take these contacts? The reachability criterion of section 5.2 ("Wrench Closure":
 "the reachability criterion was extended to mark as unreachable configurations in which finger
 links penetrates the object"), over the assignments of contacts to fingers that
-:mod:`controllers.finger_assignment` ranks.
+:mod:`controllers.hand.finger_assignment` ranks.
 
 The grasp controller moves virtual contacts on a polygon and knows nothing of fingers. Before a
 set of contacts is accepted, :func:`check_reach` asks, in this order:
@@ -18,8 +18,8 @@ set of contacts is accepted, :func:`check_reach` asks, in this order:
 The first failure is the reason given. The block is the perceived one throughout.
 
 The perceived prism and the finger measures the test uses (clearance, link penetration, pad
-normals, fingertip positions) live in :mod:`controllers.finger_geometry`; they are re-exported
-here, as is :data:`controllers.finger_samples.PAD_NORMAL_LOCAL`.
+normals, fingertip positions) live in :mod:`controllers.hand.finger_geometry`; they are re-exported
+here, as is :data:`controllers.hand.finger_samples.PAD_NORMAL_LOCAL`.
 """
 
 from __future__ import annotations
@@ -31,24 +31,24 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.finger_assignment import (
+from controllers.hand.finger_assignment import (
     BOTTOM_MARGIN,
     TOP_MARGIN,
     FingerContacts,
     ranked_assignments,
 )
-from controllers.finger_geometry import (
+from controllers.hand.finger_geometry import (
     PerceivedPrism,
     finger_palmar,
     finger_sideways,
     link_penetration,
     pad_normals,
 )
-from controllers.finger_samples import Criteria, FingerSamples
-from controllers.finger_span import FingerSpans
-from controllers.kinematic_scratch import kinematic_scratch
-from controllers.posture import solve_posture
-from controllers.reach import ReachTarget
+from controllers.hand.finger_samples import Criteria, FingerSamples
+from controllers.hand.finger_span import FingerSpans
+from controllers.posture.kinematic_scratch import kinematic_scratch
+from controllers.posture.solver import solve_posture
+from controllers.reach.coarse import ReachTarget
 from hand_sim import robot
 from hand_sim.indices import RobotIndices
 from hand_sim.world import World
@@ -167,7 +167,7 @@ def _beyond_span(
     tips: NDArray[np.float64],
 ) -> bool:
     """True when a fingertip target of ``tips`` (4, 3) lies beyond its finger's span
-    (:class:`controllers.finger_span.FingerSpans`) from configuration ``qpos``: no hand posture
+    (:class:`controllers.hand.finger_span.FingerSpans`) from configuration ``qpos``: no hand posture
     brings that fingertip within :data:`CONTACT_TOLERANCE` of it. ``data`` (of ``model``) is
     left at ``qpos``, its kinematics computed."""
     data.qpos[:] = qpos
@@ -346,7 +346,7 @@ def reachable_contacts(
     skip the IK of contacts beyond a finger's span (only the first's reason is returned);
     ``span_test``: the first check does too (:func:`check_reach`). ``idle``: a three-contact
     grasp (three contacts) whose ``idle`` finger takes none
-    (:func:`controllers.finger_assignment.ranked_assignments`, :func:`check_reach`)."""
+    (:func:`controllers.hand.finger_assignment.ranked_assignments`, :func:`check_reach`)."""
     th = np.asarray(theta, dtype=float)
     model = world.model if model is None else model
     first: tuple[FingerContacts, HandReach] | None = None

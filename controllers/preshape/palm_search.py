@@ -3,13 +3,14 @@ find an arm and hand configuration from which the hand reaches a set of virtual 
 perceived block. Used by the task cycle (:mod:`fsm.handlers.posture_control`, and its lateral
 pre-shape) and by the physical grasp study's placement (:mod:`experiments.physics.hand_placement`).
 
-Two searches, over candidates generated elsewhere (:mod:`controllers.palm_candidates`, or the
-study's ranked palm-down seeds):
+Two searches, over candidates generated elsewhere (:mod:`controllers.preshape.palm_candidates`, or
+the study's ranked palm-down seeds):
 - :func:`search_seeds` (IK seeding): from each start configuration, with the contacts given to
-  its fingers, the arm-and-hand IK (:func:`controllers.posture.solve_posture`) takes the
+  its fingers, the arm-and-hand IK (:func:`controllers.posture.solver.solve_posture`) takes the
   fingertips onto the contacts; a posture that tilts the palm more than a limit from the
   reference approach axis is refused; the contacts are then confirmed from that posture by the
-  reach test (:func:`controllers.hand_reach.reachable_contacts`). The first confirmed one wins.
+  reach test (:func:`controllers.hand.reachability.reachable_contacts`). The first confirmed one
+  wins.
 - :func:`search_poses`: at fixed palm poses, the hand IK alone (starting from sampled finger
   postures), ranked by the reach test's load, each accepted only when the hand approaches it
   without collision (a callback plans the approach).
@@ -28,20 +29,20 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.cspace import CollisionChecker
-from controllers.finger_assignment import FingerContacts
-from controllers.finger_geometry import PerceivedPrism
-from controllers.finger_samples import FingerSamples
-from controllers.hand_reach import (
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.finger_samples import FingerSamples
+from controllers.hand.reachability import (
     SQUEEZE_REACH,
     HandReach,
     grip_targets,
     reachable_contacts,
 )
-from controllers.motion import ApproachPlan
-from controllers.palm_candidates import PalmPose
-from controllers.posture import solve_posture
-from controllers.reach import ReachTarget
+from controllers.planning.cspace import CollisionChecker
+from controllers.posture.solver import solve_posture
+from controllers.preshape.moves import ApproachPlan
+from controllers.preshape.palm_candidates import PalmPose
+from controllers.reach.coarse import ReachTarget
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -128,7 +129,7 @@ def search_seeds(
     contacts the start gives them (fingers allowed to touch the block named ``touchable``,
     collision avoidance otherwise); refused when the palm's approach axis (from ``checker``'s
     palm pose) tilts more than ``max_tilt`` (rad) from ``axis`` (named ``axis_name`` in the
-    reason); confirmed by :func:`controllers.hand_reach.reachable_contacts` with
+    reason); confirmed by :func:`controllers.hand.reachability.reachable_contacts` with
     ``confirm_tries`` assignments and ``check_spacing``. The contacts are at fixed heights (a
     top grasp)."""
     world = query.world
@@ -203,8 +204,8 @@ def search_poses(
     heights_of: Callable[[PalmPose], NDArray[np.float64]] | None = None,
     idle_of: Callable[[PalmPose], int | None] | None = None,
 ) -> PalmPoseResult:
-    """Search the palm ``poses`` (:func:`controllers.palm_candidates.lateral_poses`,
-    :func:`~controllers.palm_candidates.top_poses`) group by group (a lateral grasp's palm
+    """Search the palm ``poses`` (:func:`controllers.preshape.palm_candidates.lateral_poses`,
+    :func:`~controllers.preshape.palm_candidates.top_poses`) group by group (a lateral grasp's palm
     nearest the block first: the fingers on the far contacts keep room to squeeze; at the limit
     of their reach they push the block along instead) for one from which the hand reaches the
     contacts ``contacts_of(pose)`` (the hand IK starting from ``query.samples``, ``tries``

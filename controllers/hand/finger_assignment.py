@@ -4,10 +4,11 @@ assignment of contacts to fingers by reach distance, and a three-contact grasp's
 The grasp controller moves virtual contacts on a polygon and knows nothing of fingers; the
 fingers (ff, mf, rf, th) take them by the optimal assignment on squared reach distance
 (Hungarian method), or in the order of the assignments :func:`ranked_assignments` lists, which
-:func:`controllers.hand_reach.reachable_contacts` tests in turn. In a three-contact grasp (a
-lateral thumb against two fingers, :func:`controllers.lateral_grasp.three_contact_lateral_grasp`)
-one finger, ``idle``, takes no contact: its row holds its own fingertip, a zero normal and a NaN
-contact coordinate, and it stays where its posture holds it.
+:func:`controllers.hand.reachability.reachable_contacts` tests in turn. In a three-contact grasp (a
+lateral thumb against two fingers,
+:func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`) one finger, ``idle``, takes
+no contact: its row holds its own fingertip, a zero normal and a NaN contact coordinate, and it
+stays where its posture holds it.
 """
 
 from __future__ import annotations
@@ -20,9 +21,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
-from controllers.fine_reach import GRASP_DEPTH
-from controllers.finger_geometry import PerceivedPrism, fingertips_at
-from controllers.reach import ReachTarget
+from controllers.hand.finger_geometry import PerceivedPrism, fingertips_at
+from controllers.reach.coarse import ReachTarget
+from controllers.reach.fine import GRASP_DEPTH
 from hand_sim import robot
 from hand_sim.world import World
 

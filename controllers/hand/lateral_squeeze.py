@@ -3,7 +3,7 @@ the 3-D contact model of section 3.5: the fingers press from different heights (
 finger high, the thumb low) on faces that need not oppose one another.
 
 The total squeeze is that of the shares balancing the contacts by least squares near the planar
-S_G programme's normal forces (Eq. 13; :func:`controllers.grip.balanced_shares`), its strongest
+S_G programme's normal forces (Eq. 13; :func:`controllers.hand.grip.balanced_shares`), its strongest
 finger at GRIP_FORCE. That total is shared out as the normal forces that hold the block's weight
 at its centre with the most friction to spare (:func:`controllers.grasp.holding.holding_forces`),
 whose reserve also rates the grasp: a negative one means the contacts cannot hold the block by
@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.grasp.holding import holding_forces
-from controllers.grip import GRIP_FORCE, MIN_SHARE, balanced_shares
+from controllers.hand.grip import GRIP_FORCE, MIN_SHARE, balanced_shares
 
 
 @dataclass(frozen=True)

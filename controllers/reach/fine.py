@@ -5,8 +5,9 @@ Each fingertip gets a harmonic function (Connolly & Grupen) on a 3-D grid around
 block: the block, grown by :data:`OBSTACLE_MARGIN`, the other blocks and the table are obstacles;
 the goal is the free space just outside the fingertip's surface point. Every control period the
 fingertip's next position is a short step along the gradient (straight at the target once within
-:data:`FINAL_APPROACH` of it); mink differential IK (:func:`controllers.posture.solve_posture`,
-arm and fingers) turns the four next positions into servo targets, and the simulation runs.
+:data:`FINAL_APPROACH` of it); mink differential IK
+(:func:`controllers.posture.solver.solve_posture`, arm and fingers) turns the four next positions
+into servo targets, and the simulation runs.
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import ReachError
-from controllers.harmonic import GridSpec, HarmonicField, Interpolator, solve_harmonic
-from controllers.posture import solve_posture
-from controllers.reach import ReachTarget
+from controllers.planning.harmonic import GridSpec, HarmonicField, Interpolator, solve_harmonic
+from controllers.posture.solver import solve_posture
+from controllers.reach.coarse import ReachTarget
 from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -297,7 +298,7 @@ def fine_reach(
     arrive.
 
     ``model`` (e.g. the planning model holding the perceived block,
-    :mod:`controllers.planning_model`) turns on collision avoidance in the IK: the hand's links
+    :mod:`controllers.planning.belief`) turns on collision avoidance in the IK: the hand's links
     keep clear of the table and the blocks, and only the pads may touch the geom named
     ``touchable``. Arm and hand follow the fields."""
     if tolerance <= 0:
@@ -370,7 +371,7 @@ def reach_along_normals(
     ``target_name``: the hand's servo
     targets move on the straight joint-space line from where they are to ``hand_to``, the arm
     held. When the hand starts backed off from ``hand_to``'s contact posture along the fingers'
-    squeeze directions (:func:`controllers.grip.backed_off_hand`), that line brings each
+    squeeze directions (:func:`controllers.hand.grip.backed_off_hand`), that line brings each
     fingertip in along its contact's normal, where the approach was checked clear: unlike the
     harmonic fields' IK (:func:`fine_reach`), no link sweeps round the block or into the table.
     The touch guard (:func:`touch_guard`) holds a finger that touches early where it is. The

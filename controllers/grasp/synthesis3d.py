@@ -1,7 +1,7 @@
 """One 3-D grasp controller run on one prism, a step at a time (the robot's Wrench Closure with
 contacts that have heights).
 
-The 3-D counterpart of :class:`controllers.grasp.session.GraspSynthesis`, with the same
+The 3-D counterpart of :class:`controllers.grasp.synthesis.GraspSynthesis`, with the same
 interface (``step``, ``done``, ``converged``, ``theta``, ``finish``) plus ``heights``: the
 controller step of :func:`controllers.grasp.trials3d.run_trials_3d` (theta and height, in a band
 of heights, the pads kept apart after every step). When it finishes, the contacts' common height
@@ -19,8 +19,8 @@ from controllers.grasp.composition import Composer
 from controllers.grasp.errors import GraspError
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
-from controllers.grasp.session import SteppedSynthesis, SynthesisStep
 from controllers.grasp.state import ControlState3D
+from controllers.grasp.synthesis import SteppedSynthesis, SynthesisStep
 from controllers.grasp.task_height import TaskShift, ranked_shifts, spread_shifts
 from controllers.grasp.trials import GAIN, MAX_STEPS
 from controllers.grasp.trials3d import (

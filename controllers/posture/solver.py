@@ -3,7 +3,7 @@ paper): keep the fingertips where they are while reconfiguring the arm and hand 
 hand's manipulability, with mink's differential IK (one position-only FrameTask per fingertip,
 joint limits as ConfigurationLimit).
 
-The manipulability measure ``M`` and its mink task are in :mod:`controllers.manipulability`.
+The manipulability measure ``M`` and its mink task are in :mod:`controllers.posture.manipulability`.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controllers.errors import PostureError
-from controllers.ik_progress import ReachProgress
-from controllers.kinematic_scratch import kinematic_scratch
-from controllers.manipulability import ManipulabilityTask, log_manipulability
-from controllers.reduced_ik import ReducedStep
+from controllers.posture.ik_progress import ReachProgress
+from controllers.posture.kinematic_scratch import kinematic_scratch
+from controllers.posture.manipulability import ManipulabilityTask, log_manipulability
+from controllers.posture.reduced_ik import ReducedStep
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
 from hand_sim.contacts import pad_object_forces
@@ -100,7 +100,7 @@ def avoidance_groups(
     floor the robot stands on), the palm from further (:data:`PALM_DISTANCE`). The fingertip pads
     may touch the geom named ``touchable`` (the block to grasp), and with ``fingers_may_touch``
     every finger link may (a grasp wraps the block; whether a link would press into it is for
-    :mod:`controllers.hand_reach` to judge). Without ``pads_press`` the pads may touch that
+    :mod:`controllers.hand.reachability` to judge). Without ``pads_press`` the pads may touch that
     geom but not press into it (:data:`PAD_PRESS_LIMIT`): holding the fingertip sites alone
     leaves each finger free to turn about its tip, and the turn swings the pad into the face
     (clutter3: 5-9 mm in). A posture move that starts with a pad pressed in further than
@@ -232,7 +232,7 @@ def solve_posture(
     step that would let a fingertip drift beyond ``tolerance`` is refused. ``joints`` is
     ``"arm+hand"`` (posture control) or ``"hand"`` (fingers only); other joints are frozen.
     ``model`` replaces the world's model (same state layout; e.g. the planning model holding the
-    perceived target, :mod:`controllers.planning_model`). ``avoid_collisions`` keeps every robot
+    perceived target, :mod:`controllers.planning.belief`). ``avoid_collisions`` keeps every robot
     geom :data:`AVOID_DISTANCE` from the table and the blocks (mink's collision avoidance limit),
     except that the fingertip pads may touch (and, kinematically, press into, unless ``pads_press``
     is False) the geom named ``touchable``. ``pad_centres`` (4, 3), if given, are targets of the
@@ -244,8 +244,8 @@ def solve_posture(
     fingertips are brought to their targets: a contact on a prism's vertical face is planar (section
     5), a vertical line, so only the target's horizontal position is held and its height follows the
     fingertip's. ``give_up``: stop as soon as the targets cannot be reached
-    (:class:`controllers.ik_progress.ReachProgress`), for a caller that discards unreachable results
-    (their joints then differ from those of a full run). ``still``: fingers held as they are
+    (:class:`controllers.posture.ik_progress.ReachProgress`), for a caller that discards unreachable
+    results (their joints then differ from those of a full run). ``still``: fingers held as they are
     (a three-contact grasp's idle finger): their joints frozen, their targets where they are.
     """
     if joints not in JOINT_SETS:

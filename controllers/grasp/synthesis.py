@@ -17,8 +17,9 @@ With 0 (the default) the controller is the paper's.
 
 A second one, for a hand that cannot take every face: ``arcs``, one counter-clockwise interval of
 contact coordinates per contact, to which each step's contacts are projected (a lateral hand's
-pads take only the faces beside its approach axis, ``controllers.palm_candidates.lateral_arcs``).
-Without it every contact may go anywhere on the outline, as in the paper.
+pads take only the faces beside its approach axis,
+``controllers.preshape.palm_candidates.lateral_arcs``). Without it every contact may go anywhere on
+the outline, as in the paper.
 """
 
 from __future__ import annotations

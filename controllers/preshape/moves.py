@@ -17,24 +17,24 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.arm_path import (
+from controllers.deliver.carry import move_palm
+from controllers.deliver.plan import MAX_EXTRA_RISE, RISE_STEP
+from controllers.errors import ReachError
+from controllers.hand.finger_assignment import FingerContacts
+from controllers.hand.grip import PRE_CONTACT, backed_off_hand, move_hand
+from controllers.planning.belief import PERCEIVED_GEOM
+from controllers.planning.cspace import CollisionChecker
+from controllers.posture.solver import SERVO_CORRECTIONS, solve_posture
+from controllers.reach.arm_path import (
     ROLL_AT_START_COLLIDES,
     execute_path,
     first_collision,
     plan_arm_path,
     roll_turned_above,
 )
-from controllers.cspace import CollisionChecker
-from controllers.delivery import MAX_EXTRA_RISE, RISE_STEP
-from controllers.errors import ReachError
-from controllers.fine_reach import project_to_surface
-from controllers.finger_assignment import FingerContacts
-from controllers.grip import PRE_CONTACT, backed_off_hand, move_hand
-from controllers.planning_model import PERCEIVED_GEOM
-from controllers.posture import SERVO_CORRECTIONS, solve_posture
-from controllers.reach import ReachTarget
+from controllers.reach.coarse import ReachTarget
+from controllers.reach.fine import project_to_surface
 from controllers.timing import SERVO_SETTLE_TIME
-from controllers.transport import move_palm
 from hand_sim import robot
 from hand_sim.blocks import GEOM_SUFFIX
 from hand_sim.contacts import robot_contacts
@@ -250,10 +250,10 @@ def move_backed_out(site: BlockSite, arm_q: NDArray[np.float64]) -> str:
     """Move the arm, the hand keeping its shape, from where it is to the backed-out posture
     ``arm_q``, and say how: ``"straight"``, in a straight joint-space line, when every posture
     on it keeps ``direct_clearance`` from the perceived world; else ``"harmonic"``, on a
-    collision-free harmonic path (:func:`controllers.arm_path.plan_arm_path`; where turning
+    collision-free harmonic path (:func:`controllers.reach.arm_path.plan_arm_path`; where turning
     the wrist roll first would sweep the hand through a neighbour, the roll turns at the goal,
     the empty hand tilting nothing, or above the start,
-    :func:`controllers.arm_path.roll_turned_above`); else ``"unplanned"`` (e.g. the backed-out
+    :func:`controllers.reach.arm_path.roll_turned_above`); else ``"unplanned"`` (e.g. the backed-out
     hand already grazes a neighbour): straight there anyway."""
     world, p = site.world, site.params
     start = world.arm_qpos()
@@ -338,7 +338,7 @@ def approach_plan(
     ``approach_standoffs`` outside their contacts) and the hand's pre-contact posture there
     (PRE_CONTACT outside); None when no approach clears. ``qpos``'s hand takes ``contacts``
     (``squeeze_reach`` inside); the fingers back off from it along their squeeze directions
-    (:func:`controllers.grip.backed_off_hand`)."""
+    (:func:`controllers.hand.grip.backed_off_hand`)."""
     arm_q = qpos[robot.arm_qpos_addresses(site.world.model)]
 
     def hand_at(standoff: float) -> NDArray[np.float64]:

@@ -4,13 +4,13 @@ the heights its fingers take (section 3.4 in 3-D, docs/task_cycle.md "The latera
 A lateral hand comes in beside the block with its finger row horizontal and its thumb below
 it: the hand's shape, not the controller, sets each finger's height on the block (the reach
 test slides each contact up or down its face to where the finger can press it,
-:func:`controllers.hand_reach.check_reach`). So the contacts' heights are not the controller's
-to move, as they are in a top grasp (:class:`~controllers.grasp.session3d.GraspSynthesis3D`,
-where moment closure moves them within a band and the task sets their common height): they are
-given (:meth:`LateralSynthesis3D.set_heights`, from the pre-shape's and each reach test's
-heights) and held; the controller moves the contact coordinates theta, each kept on its arc and
-the pads apart exactly as the planar lateral grasp
-(:func:`controllers.grasp.session.keep_contacts`).
+:func:`controllers.hand.reachability.check_reach`). So the contacts' heights are not the
+controller's to move, as they are in a top grasp
+(:class:`~controllers.grasp.synthesis3d.GraspSynthesis3D`, where moment closure moves them within a
+band and the task sets their common height): they are given (:meth:`LateralSynthesis3D.set_heights`,
+from the pre-shape's and each reach test's heights) and held; the controller moves the contact
+coordinates theta, each kept on its arc and the pads apart exactly as the planar lateral grasp
+(:func:`controllers.grasp.synthesis.keep_contacts`).
 
 What the heights change: eps_MC (Eq. 10 with m_x, m_y, moments about the contacts' mean height,
 :func:`controllers.grasp.trials3d.residual_about_mean_height`), which the pre-imaging
@@ -36,8 +36,8 @@ from controllers.grasp.errors import GraspError
 from controllers.grasp.polygon import Polygon, wrap_angle
 from controllers.grasp.prism3d import physical_tasks
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
-from controllers.grasp.session import keep_contacts
-from controllers.grasp.session3d import GraspSynthesis3D
+from controllers.grasp.synthesis import keep_contacts
+from controllers.grasp.synthesis3d import GraspSynthesis3D
 from controllers.grasp.trials import GAIN, MAX_STEPS
 from controllers.grasp.trials3d import HeightBand
 
@@ -53,7 +53,7 @@ class LateralSynthesis3D(GraspSynthesis3D):
     ``load`` (m*g over the unit contact force) is the task S_G is scored with (the weight,
     :data:`WEIGHT_STAGE`); None scores the null task as the top grasp does. ``min_separation``
     and ``separation_offset`` (the polygon's unit) keep the pads apart as in
-    :class:`~controllers.grasp.session.GraspSynthesis`."""
+    :class:`~controllers.grasp.synthesis.GraspSynthesis`."""
 
     def __init__(
         self,
@@ -100,7 +100,7 @@ class LateralSynthesis3D(GraspSynthesis3D):
 
     def _keep(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """``theta`` (1, n) projected where a lateral hand's contacts may be: pads apart, each
-        on its arc (:func:`~controllers.grasp.session.keep_contacts`, as the planar grasp)."""
+        on its arc (:func:`~controllers.grasp.synthesis.keep_contacts`, as the planar grasp)."""
         return keep_contacts(
             self.polygon, theta[0], self.min_separation, self.separation_offset, self.arcs
         )[None]

@@ -1,7 +1,7 @@
 """Sampled finger postures: where each finger of the hand can put its fingertip, and how its pad
 and links lie there, for a global search of a finger posture that takes a contact.
 
-The reachability check of section 5.2 (:func:`controllers.hand_reach.check_reach`) solves the
+The reachability check of section 5.2 (:func:`controllers.hand.reachability.check_reach`) solves the
 hand's inverse kinematics from the posture the hand has; a finger with several ways of reaching
 a contact (abduction against flexion, a pad turned sideways or not) then ends in whichever the
 iterates find first. In a lateral grasp the fingers that reach round the block's corners have a
@@ -28,7 +28,7 @@ from hand_sim.resources import models_dir
 SAMPLES = 20_000
 SEED = 0
 #: Points sampled along each finger link capsule's axis for the link-penetration tests (here and
-#: in :func:`controllers.hand_reach.link_penetration`).
+#: in :func:`controllers.hand.reachability.link_penetration`).
 POINTS_PER_LINK = 7
 #: A sample's height preference (:meth:`FingerSamples.best`): every HEIGHT_SCALE (m) between its
 #: contact's height and the preferred one counts as much as the whole margin of one criterion.
@@ -40,7 +40,7 @@ PAD_NORMAL_LOCAL = np.array([0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)])
 
 @dataclass(frozen=True)
 class Criteria:
-    """The reachability criteria a sample is scored on (:mod:`controllers.hand_reach`)."""
+    """The reachability criteria a sample is scored on (:mod:`controllers.hand.reachability`)."""
 
     tolerance: float  #: m, largest distance of the fingertip from its contact line
     max_pad_angle: float  #: rad

@@ -106,7 +106,7 @@ class CollisionChecker:
     hand: it then moves rigidly with the palm (its pose relative to the palm as in ``world``
     now) and counts as part of the hand (delivery: "navigate the hand/arm/object"). ``model`` is
     the model to copy instead of the world's (same state layout), e.g. a
-    :func:`controllers.planning_model.planning_model` holding the perceived target. ``qpos`` is
+    :func:`controllers.planning.belief.planning_model` holding the perceived target. ``qpos`` is
     the configuration to copy instead of the world's now (a posture the arm is not in yet, e.g.
     a grasp whose set-down is checked before it is taken).
     """

@@ -4,14 +4,15 @@ configuration space and execution on the simulated arm's position servos.
 The c-space is the arm's first four joints (waist, shoulder, elbow, wrist pitch); the wrist roll
 is turned to the goal's value at the start posture and held. The grid covers the box spanned by
 the start and goal postures plus :data:`BOX_MARGIN`, within the joint limits. Obstacle nodes are
-found with MuJoCo's collision detection (:class:`controllers.cspace.CollisionChecker`, with a
-clearance); goal nodes are free nodes near the exact IK goal joined to it by a collision-free
+found with MuJoCo's collision detection (:class:`controllers.planning.cspace.CollisionChecker`, with
+a clearance); goal nodes are free nodes near the exact IK goal joined to it by a collision-free
 straight segment (likewise the start). The extracted path is checked posture by posture at
 :data:`VERIFY_STEP` with MuJoCo; a node next to a colliding posture is marked as an obstacle and
 the harmonic function solved again (up to :data:`MAX_REPAIRS` times).
 
-The coarse reach (:mod:`controllers.reach`) and the delivery (:mod:`controllers.delivery`) both
-plan with :func:`plan_arm_path` and move the arm with :func:`execute_path`.
+The coarse reach (:mod:`controllers.reach.coarse`) and the delivery
+(:mod:`controllers.deliver.plan`) both plan with :func:`plan_arm_path` and move the arm with
+:func:`execute_path`.
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
-from controllers.harmonic import GridSpec, ascend, solve_harmonic
+from controllers.planning.cspace import CollisionChecker
+from controllers.planning.harmonic import GridSpec, ascend, solve_harmonic
 from controllers.timing import CONTROL_PERIOD, SERVO_SETTLE_TIME, control_steps
 from hand_sim import robot
 from hand_sim.world import World

@@ -2,10 +2,11 @@
 table takes its weight, and move the hand clear after the release.
 
 Every motion of the arm here is a sequence of servo targets from the arm's inverse kinematics
-(:class:`controllers.cspace.CollisionChecker`) along a smooth (cosine) time profile, and during a
-lift, carry or set-down the grip holds the fingers' servo targets (:class:`controllers.grip.Grip`).
-What happened is measured in the simulation, never read back from a target: the block's rise
-against the palm's (slip), the wrist force/torque sensor (the table taking the weight).
+(:class:`controllers.planning.cspace.CollisionChecker`) along a smooth (cosine) time profile, and
+during a lift, carry or set-down the grip holds the fingers' servo targets
+(:class:`controllers.hand.grip.Grip`). What happened is measured in the simulation, never read back
+from a target: the block's rise against the palm's (slip), the wrist force/torque sensor (the table
+taking the weight).
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.cspace import CollisionChecker
 from controllers.errors import ReachError
-from controllers.grip import Grip
+from controllers.hand.grip import Grip
+from controllers.planning.cspace import CollisionChecker
 from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
 from hand_sim.world import World

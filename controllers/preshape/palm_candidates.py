@@ -2,7 +2,7 @@
 Control: the arm reconfigures so that the virtual contacts come within the fingers' reach).
 
 Each generator takes the world, the planning model and the perceived block explicitly and
-returns configurations to start from; :mod:`controllers.palm_pose` searches them:
+returns configurations to start from; :mod:`controllers.preshape.palm_search` searches them:
 - :func:`lateral_poses`: palm poses beside the block (a lateral grasp), with a pinch pre-shape;
 - :func:`top_poses`: palm poses above the block, turned about it and shifted (a top grasp);
 - :func:`roll_seeds`: the present configuration with the wrist rolled in steps (a top grasp's
@@ -22,9 +22,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
-from controllers.cspace import CollisionChecker
 from controllers.grasp.polygon import Polygon
-from controllers.reach import (
+from controllers.planning.cspace import CollisionChecker
+from controllers.reach.coarse import (
     LATERAL_DEPTH,
     PITCH_TOLERANCE,
     ReachTarget,
@@ -69,8 +69,8 @@ class PalmPoseParams:
     lateral_more_rolls: tuple[float, ...] = tuple(np.deg2rad([180.0, 170.0, 90.0, -90.0]))
     lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
     #: The palm poses a lateral pre-shape searches for contacts among the sampled finger
-    #: postures (:mod:`controllers.lateral_grasp`): gaps (m) and shifts (m) as above, with the
-    #: same rolls. Wider than the pinch's: that search is cheap where no finger posture fits (no
+    #: postures (:mod:`controllers.preshape.lateral_grasp`): gaps (m) and shifts (m) as above, with
+    #: the same rolls. Wider than the pinch's: that search is cheap where no finger posture fits (no
     #: hand IK runs there), and ``benchmarks.hand_reachability`` finds the hand's lateral grasps
     #: with the palm 3-30 mm from the block and the block up to 3 cm aside.
     lateral_sampled_gaps: tuple[float, ...] = (0.015, 0.02, 0.025, 0.03, 0.035, 0.04)
@@ -141,7 +141,7 @@ class PoseSetting:
 
 @dataclass(frozen=True, eq=False)
 class PalmPose:
-    """A palm pose a Posture Control search tries (:func:`controllers.palm_pose.search_poses`):
+    """A palm pose a Posture Control search tries (:func:`controllers.preshape.palm_search.search_poses`):
     the configuration (qpos), its group (poses are tried group by group, in order: a lateral
     pose's palm-block distance in m, a top pose's 0 where the palm is and 1 shifted) and a
     label."""
@@ -165,7 +165,7 @@ def approach_origin(
     :func:`lateral_arcs` and :func:`side_contacts`: the arm's base (``base_xy``) when the
     coarse reach's palm (``coarse_rotation``, approach axis = its z column) faces the block from
     the base's side, else the base mirrored through the block's centre (a palm beyond the
-    block, facing back towards the base: :func:`controllers.reach.plan_coarse_reach`)."""
+    block, facing back towards the base: :func:`controllers.reach.coarse.plan_coarse_reach`)."""
     base = np.asarray(base_xy, dtype=float)
     if from_base_side(base, target, coarse_rotation):
         return base
@@ -196,7 +196,7 @@ def lateral_poses(
     """Palm poses beside the perceived block: the approach axis radial (the arm has five joints;
     from the base's side of the block, or from its far side where the coarse reach's is) and
     horizontal, or pitched down as the coarse reach's (``coarse_rotation``, its goal palm
-    rotation; :data:`controllers.reach.LATERAL_TILTS`), hand y up as the coarse reach put it,
+    rotation; :data:`controllers.reach.coarse.LATERAL_TILTS`), hand y up as the coarse reach put it,
     turned ``lateral_rolls`` about the axis, the palm face ``lateral_gaps`` from the block's
     nearest point along the axis (which passes LATERAL_DEPTH below the top of the block's
     vertical axis), ``lateral_shifts`` aside; in order of the gap. A pitched palm's face is
@@ -221,7 +221,7 @@ def lateral_poses(
     axis /= np.linalg.norm(axis)
     up = np.array([0.0, 0.0, np.sign(coarse_rotation[2, 1]) or 1.0])
     # the coarse reach's pitch of the approach axis below the horizontal (0 but where the arm
-    # reaches a lateral goal only pitched, controllers.reach.LATERAL_TILTS)
+    # reaches a lateral goal only pitched, controllers.reach.coarse.LATERAL_TILTS)
     tilt = axis_pitch(coarse_rotation)
     near = float(((target.footprint() - centre[:2]) @ axis[:2]).min())
     if arcs is not None:
@@ -483,7 +483,7 @@ def face_arcs(polygon: Polygon, theta: NDArray[np.float64], inset: float) -> NDA
     """Each contact's own face as a contact-coordinate interval ``(lo, hi)`` (rad,
     counter-clockwise), its ends ``inset`` (m; at most a quarter of the face) in from the
     face's vertices: where a lateral grasp whose contacts were chosen among the hand's sampled
-    postures (:mod:`controllers.lateral_grasp`) keeps each finger."""
+    postures (:mod:`controllers.preshape.lateral_grasp`) keeps each finger."""
     v = polygon.vertices
     edges = polygon.locate(np.asarray(theta, dtype=float)).edge
     out = np.empty((len(edges), 2))

@@ -1,9 +1,10 @@
 """Reusable MuJoCo state for the kinematic queries of posture control and the reach test.
 
 Posture Control's searches run thousands of small IK problems in an episode
-(:func:`controllers.posture.solve_posture`, :func:`controllers.hand_reach.check_reach`), each on
-the world's model or on a planning model of the same layout. Making a fresh ``MjData`` for each
-(and mink's :class:`~mink.Configuration`, which makes another, and its
+(:func:`controllers.posture.solver.solve_posture`,
+:func:`controllers.hand.reachability.check_reach`), each on the world's model or on a planning model
+of the same layout. Making a fresh ``MjData`` for each (and mink's :class:`~mink.Configuration`,
+which makes another, and its
 :class:`~mink.ConfigurationLimit`) cost about a millisecond per problem, a sixth of a slow
 episode's Posture Control. The state here is made once per model and reused: every query sets
 the whole ``qpos`` and recomputes the kinematics from it, so what it computes does not depend on

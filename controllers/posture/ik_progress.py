@@ -1,8 +1,8 @@
 """When to give up an inverse-kinematics reach that cannot succeed.
 
-Posture Control's palm-pose searches (:mod:`controllers.palm_pose`) and the reach test
-(:mod:`controllers.hand_reach`) solve hundreds of fingertip IK problems per search, and most of
-them are out of reach: over the slow random scenes of ``python -m experiments.bench`` the reach
+Posture Control's palm-pose searches (:mod:`controllers.preshape.palm_search`) and the reach test
+(:mod:`controllers.hand.reachability`) solve hundreds of fingertip IK problems per search, and most
+of them are out of reach: over the slow random scenes of ``python -m experiments.bench`` the reach
 test's hand IK converged in about 6 iterations when the contacts were reachable and spent all
 of its 250 when they were not, its error long flat at several millimetres. :class:`ReachProgress`
 watches the worst fingertip error of an IK's iterates and says when, at the rate it fell over

@@ -6,7 +6,7 @@ tensions, :mod:`hand_sim.contact_estimate`).
 
 Each finger moves on its own line in joint space, from a pre-contact posture (fingertip
 :data:`PRE_CONTACT` outside its contact, pad facing it) through the contact to a posture
-:data:`controllers.hand_reach.SQUEEZE_REACH` inside the surface: finger f's servo targets are
+:data:`controllers.hand.reachability.SQUEEZE_REACH` inside the surface: finger f's servo targets are
 ``q_pre + s_f (q_in - q_pre)`` with its own progress ``s_f``. Closing advances every ``s_f`` until
 that finger's pad feels the block (the touch guard: a finger that touches stops, so the first
 finger does not shove the block before the others arrive). Squeezing then regulates each finger's
@@ -26,10 +26,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import lsq_linear
 
 from controllers.errors import ReachError
-from controllers.finger_assignment import pressing_fingers
-from controllers.finger_geometry import PerceivedPrism, finger_clearance
-from controllers.hand_reach import SQUEEZE_REACH, grip_targets
-from controllers.posture import solve_posture
+from controllers.hand.finger_assignment import pressing_fingers
+from controllers.hand.finger_geometry import PerceivedPrism, finger_clearance
+from controllers.hand.reachability import SQUEEZE_REACH, grip_targets
+from controllers.posture.solver import solve_posture
 from controllers.timing import CONTROL_PERIOD, control_steps
 from hand_sim import robot
 from hand_sim.indices import RobotIndices

@@ -1,8 +1,8 @@
 """The perceived block and where the fingers are against it (section 5.2, "Wrench Closure": "finger
 links penetrates the object"): the perceived prism and its exact signed distance, each finger's
 clearance from it and its links' penetration into it, fingertip positions, and the distal links'
-pad, palmar and sideways directions. The reachability test (:mod:`controllers.hand_reach`) and
-the grip (:mod:`controllers.grip`) judge postures with these measures.
+pad, palmar and sideways directions. The reachability test (:mod:`controllers.hand.reachability`)
+and the grip (:mod:`controllers.hand.grip`) judge postures with these measures.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.finger_samples import PAD_NORMAL_LOCAL, POINTS_PER_LINK
-from controllers.reach import ReachTarget
+from controllers.hand.finger_samples import PAD_NORMAL_LOCAL, POINTS_PER_LINK
+from controllers.reach.coarse import ReachTarget
 from hand_sim import robot
 
 

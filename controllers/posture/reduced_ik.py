@@ -3,9 +3,9 @@
 :func:`mink.solve_ik` builds its quadratic program over every degree of freedom of the model
 (the arm's 5, the hand's 16 and 6 per free block) and holds the joints that must not move with
 equality constraints (:class:`mink.DofFreezingTask`); each :class:`mink.FrameTask` adds a 6-row
-Jacobian over all of them. Posture control (:mod:`controllers.posture`) runs tens of thousands of
-such steps in an episode's searches, most of them with the arm frozen and only position targets
-on sites. :class:`ReducedStep` solves the same program with the frozen joints eliminated:
+Jacobian over all of them. Posture control (:mod:`controllers.posture.solver`) runs tens of
+thousands of such steps in an episode's searches, most of them with the arm frozen and only position
+targets on sites. :class:`ReducedStep` solves the same program with the frozen joints eliminated:
 
     min_dq  1/2 dq^T H dq + c^T dq   s.t.  G dq <= h,   dq_frozen = 0
 

@@ -6,9 +6,9 @@ links; executed on the simulated arm's position servos.
 "The path computed determines whether a top or lateral grasp will be executed": both approaches
 are planned and the one whose path exists and is shorter (in joint space) is chosen. This module
 holds the target, the goal poses of each approach, their IK goals and :func:`plan_coarse_reach`.
-The path planner and its execution live in :mod:`controllers.arm_path` (the same planner moves
-the arm, hand and object to a delivery posture, :mod:`controllers.delivery`); their public names
-are re-exported here so that ``from controllers.reach import plan_arm_path`` keeps working.
+The path planner and its execution live in :mod:`controllers.reach.arm_path` (the same planner moves
+the arm, hand and object to a delivery posture, :mod:`controllers.deliver.plan`); their public names
+are re-exported here so that ``from controllers.reach.coarse import plan_arm_path`` keeps working.
 """
 
 from __future__ import annotations
@@ -21,15 +21,15 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controllers.arm_path import (
+from controllers.errors import ReachError
+from controllers.grasp.polygon import Polygon
+from controllers.planning.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult
+from controllers.reach.arm_path import (
     DEFAULT_RESOLUTION,
     ROLL,
     ArmPath,
     plan_arm_path,
 )
-from controllers.cspace import DEFAULT_CLEARANCE, CollisionChecker, IKResult
-from controllers.errors import ReachError
-from controllers.grasp.polygon import Polygon
 from hand_sim import robot
 from hand_sim.world import World
 
@@ -375,7 +375,7 @@ def plan_coarse_reach(
     at ``hand_q``: every approach is planned and the shortest existing path wins (a lateral goal
     only pitched down, :data:`LATERAL_TILTS`, only where no top path exists). ``model`` is
     the model collisions are checked in (default the world's; the task cycle passes the
-    planning model holding the perceived target, :mod:`controllers.planning_model`).
+    planning model holding the perceived target, :mod:`controllers.planning.belief`).
     ``lateral_tilt``: the lateral goals are only those of :data:`LATERAL_GOAL_FALLBACKS`
     pitched this far down (rad), e.g. one of :data:`LATERAL_TILTS`.
 

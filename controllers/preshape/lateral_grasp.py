@@ -7,10 +7,10 @@ points of the block's outline its fingers can press with their pads depends on t
 width and turn, and a fixed pinch pre-shape's fingertips, projected across the approach axis,
 land on points the hand cannot take on most blocks that are not the rectangle it was found on.
 Here, at a palm pose beside the block, every sampled posture of each finger
-(:class:`controllers.finger_samples.FingerSamples`) whose fingertip lies ``squeeze`` inside a
+(:class:`controllers.hand.finger_samples.FingerSamples`) whose fingertip lies ``squeeze`` inside a
 side face of the perceived prism and that meets the reachability criteria of
-:mod:`controllers.hand_reach` (pad facing the face, not sideways, the contact on the palmar half,
-no link in the block) gives that finger a candidate contact. Of the combinations of one
+:mod:`controllers.hand.reachability` (pad facing the face, not sideways, the contact on the palmar
+half, no link in the block) gives that finger a candidate contact. Of the combinations of one
 candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart where they
 take their contacts, heights included), the one with the lowest S_G (Eq. 13, planar,
 on the unit-moment polygon, section 3.4) is the grasp; the reach test then confirms it with the
@@ -27,12 +27,12 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.finger_assignment import pressing_fingers
-from controllers.finger_geometry import PerceivedPrism
-from controllers.finger_samples import Criteria, FingerSamples
 from controllers.grasp.polygon import Polygon
 from controllers.grasp.score import grasp_score
-from controllers.hand_reach import (
+from controllers.hand.finger_assignment import pressing_fingers
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.hand.finger_samples import Criteria, FingerSamples
+from controllers.hand.reachability import (
     BOTTOM_MARGIN,
     CONTACT_SEPARATION,
     MAX_LINK_PENETRATION,
