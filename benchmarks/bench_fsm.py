@@ -1,13 +1,13 @@
 """Speed of the task cycle: wall and CPU time per state, the simulated/wall time ratio of
 episodes, and how far the episode is from the cost of its physics alone.
 
-Runs ``python -m fsm.run``'s episode loop (fsm.machine.run_episode) on a scene, with and without
-the recording, and prints one row per state (summed over the episodes) and the totals. Each
-episode's control inputs are captured at every simulation step; the same steps are then replayed
-on a freshly built world of the same scene and hand, with nothing but ``mj_step`` (and, for the
-tendon hand, its joint loop before every step; no planning, no vision, no recording): the
-physics-only time. The last lines give the process's wall time since it
-started (imports included) and the ratio of the episode's wall time to the physics-only time.
+Runs ``python -m fsm.run``'s episode loop (fsm.machine.run_episode) on a scene, with and without the
+recording, and prints one row per state (summed over the episodes) and the totals. Each episode's
+control inputs are captured at every simulation step; the same steps are then replayed on a freshly
+built world of the same scene and hand, with nothing but ``mj_step`` (and, for the tendon hand, its
+joint loop before every step; no planning, no vision, no recording): the physics-only time. The last
+lines give the process's wall time since it started (imports included) and the ratio of the
+episode's wall time to the physics-only time.
 
 Usage: python -m benchmarks.bench_fsm [--scene clutter3] [--seeds 1] [--controller pi]
 [--hand tendon|servo] [--no-record]

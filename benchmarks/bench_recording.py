@@ -32,8 +32,8 @@ from hand_sim.scene import load_scene
 from hand_sim.world import World
 from vision import Observation, overhead_camera, select
 
-#: Simulated seconds of the settle; the task cycle of issue 9 lasts
-#: 25-40 s of simulated time, so the size is also extrapolated to EPISODE_S.
+#: Simulated seconds of the settle; the task cycle lasts 25-40 s of simulated time, so the size
+#: is also extrapolated to EPISODE_S.
 SETTLE_S, EPISODE_S = 0.5, 40.0
 #: Stand-in for Grasp Object: the fingers curl to this fraction of their flexion range over
 #: CURL_S, the palm descends (at most MAX_DESCENT m over DESCENT_S) until the hand touches the

@@ -75,7 +75,7 @@ from controllers.grasp import PAPER_OBJECTS, Polygon, grasp_score, paper_object
 from hand_sim import clitools as cli
 
 #: The search, plus the sampling, placement and contact names of benchmarks.fingertip_contacts
-#: (re-exported: they used to live here).
+#: (re-exported here).
 __all__ = [
     "ARC_BIN",
     "BLOCK_HEIGHT",

@@ -1,5 +1,6 @@
-"""Errors raised by the reach and posture controllers (``controllers.planning.harmonic``,
-``controllers.planning.cspace``, ``controllers.reach.coarse``, ``controllers.posture.solver``).
+"""Errors raised by the reach and posture controllers of section 5.2
+(``controllers.planning.harmonic``, ``controllers.planning.cspace``, ``controllers.reach.coarse``,
+``controllers.posture.solver``).
 
 "No path" and "target unreachable" are results (``found`` / ``reachable`` flags), not errors: these
 exceptions are for malformed input, and their messages name the bad value.

@@ -1,5 +1,5 @@
-"""The timing every physical controller shares: its control period and how long position servos
-are given to settle, and the number of physics steps in one control period."""
+"""The timing every physical controller of section 5.2 shares: its control period and how long
+position servos are given to settle, and the number of physics steps in one control period."""
 
 from __future__ import annotations
 

@@ -24,7 +24,9 @@ LATERAL_GATE_RULES = ("opposition", "paper")
 
 @dataclass(frozen=True)
 class TaskConfig:
-    """Thresholds, tolerances and limits of the task cycle's states."""
+    """Thresholds, tolerances and limits of the task cycle's states. A ``lateral_*`` rule that
+    is on by default stays a switch: a test or a study turns it off to reach the behaviour
+    without it (the recovery tests, for instance, to make a grasp slip that the rule avoids)."""
 
     #: Fine Reach leaves each fingertip this far (m) outside its surface point; Wrench Closure
     #: then works from their projections.
@@ -42,170 +44,123 @@ class TaskConfig:
     reach_check_every: int = 10
     #: How far (m) past its contact a lateral grasp's fingertip must reach (SQUEEZE_REACH for a
     #: top grasp). A lateral squeeze runs along each finger's normal-squeeze direction, past the
-    #: inside posture by extrapolation (controllers.hand.grip.plan_grip, along_normal), so the reach
-    #: only has to show that the pad gets into the face. Chosen by looking at the result: on
-    #: single_rectangle --approach lateral --controller kb, seeds 0-9, 8 of 10 delivered with
-    #: 4 mm, 5 of 10 with SQUEEZE_REACH's 6 mm (the fingers on the far contacts cannot reach 6 mm
-    #: into the face).
+    #: inside posture by extrapolation (controllers.hand.grip.plan_grip, along_normal), so the
+    #: reach only has to show that the pad gets into the face.
+    #: Chosen by its effect on lateral episodes: docs/findings.md, "A lateral squeeze reach".
     lateral_squeeze_reach: float = 0.004
-    #: With ``--model 3d``, a lateral grasp's Wrench Closure runs the 3-D lateral controller
-    #: (controllers.grasp.synthesis_lateral: contacts on their arcs at the heights the fingers
-    #: take, S_G in 3-D with the weight) instead of the planar one. Off: at the heights a
-    #: lateral hand's fingers take (mf 4.9-6.0 cm above the block's centre, the thumb 4.4-6.9
-    #: cm below it) the 3-D S_G is 0.99-2.24 on the nine single_rectangle grasps of seeds 0-9
-    #: that the planar lateral grasp delivers, above Eq. 13's 0.4: every one would fail
-    #: Wrench Closure, although all nine hold and are delivered with the squeeze's 3-D shares
-    #: (docs/task_cycle.md, "The lateral grasp in 3-D").
-    lateral_grasp_3d: bool = False
     #: Where a lateral pre-shape's contacts come from: "sampled-first" (default), the
     #: lowest-S_G combination of contacts the hand's sampled finger postures take at palm poses
-    #: beside the block (controllers.preshape.lateral_grasp; each contact then stays on its own face,
-    #: the fingers come in along its normal), the pinch pre-shape's (the points across the
-    #: approach axis from its fingertips) only where no pose has one; "sampled", the pinch's
-    #: first and the sampled ones where no pose reaches the pinch's; "pinch", the pinch's only
-    #: (the grasp before issue 23's sixteenth session). On the 100 random lateral scenes of
-    #: record (1-3 blocks): 36 delivered with "sampled-first" (43 with the changes after it),
-    #: 20 with "pinch"; on held-out seeds 100-149, 12 of 50 and 4; the nine single scenes 7
-    #: and 6 (docs/task_cycle.md, "Sampled contacts first, fingers in along their normals,
-    #: pitched goals").
+    #: beside the block (controllers.preshape.lateral_grasp; each contact then stays on its own
+    #: face, the fingers come in along its normal), the pinch pre-shape's (the points across the
+    #: approach axis from its fingertips) only where no pose has one. Study settings: "sampled",
+    #: the pinch's first and the sampled ones where no pose reaches the pinch's; "pinch", the
+    #: pinch's only (the recovery tests reach a finger held off its surface point with it).
+    #: Measured: docs/findings.md, "Sampled contacts first".
     lateral_contacts: str = "sampled-first"
     #: The S_G (Eq. 13) a lateral grasp must reach: the paper's 0.4 by default; a study
     #: setting (``--lateral-gate``). The grasps a lateral hand beside the block can take score
     #: 0.50 on many blocks (the thumb against three fingers on parallel faces pushes three
-    #: times as hard) and 0.57-0.58 on triangles (two faces, friction carries the rest): on 20
-    #: of the 100 random lateral scenes of record no palm pose at any of ten wrist rolls has a
-    #: grasp of 0.4. Above 0.4, a sampled grasp scoring up to the gate is the pre-shape only
-    #: where none scores 0.4 and the pinch reaches nothing, and Wrench Closure accepts a
-    #: lateral grasp up to it (docs/task_cycle.md, "Eq. 13's gate bounds the lateral grasp":
-    #: at 0.6, 8 of those 20 delivered).
+    #: times as hard) and 0.57-0.58 on triangles (two faces, friction carries the rest). Above
+    #: 0.4, a sampled grasp scoring up to the gate is the pre-shape only where none scores 0.4
+    #: and the pinch reaches nothing, and Wrench Closure accepts a lateral grasp up to it.
+    #: Measured on the lateral bench: docs/findings.md, "Eq. 13's gate bounds the lateral grasp".
     lateral_gate: float = SUCCESS_THRESHOLD
     #: Where no palm pose has a sampled grasp of four contacts within the gate, the lateral
     #: pre-shape takes one of three: the thumb against two fingers, the third finger held
-    #: clear of the block (controllers.preshape.lateral_grasp.three_contact_lateral_grasp; Eq. 13 over
-    #: three contacts: a thumb against two fingers on parallel faces scores 0.33 where against
-    #: three it scores 0.50). Before the pinch pre-shape. Measured in docs/task_cycle.md,
-    #: "Three contacts where four cannot pass Eq. 13".
+    #: clear of the block (controllers.preshape.lateral_grasp.three_contact_lateral_grasp;
+    #: Eq. 13 over three contacts: a thumb against two fingers on parallel faces scores 0.33
+    #: where against three it scores 0.50). Before the pinch pre-shape.
+    #: Measured: docs/findings.md, "Three contacts where four cannot pass Eq. 13".
     lateral_three_contacts: bool = True
     #: How ``lateral_gate`` applies to a lateral grasp of n contacts. "opposition" (default):
     #: S_G <= lateral_gate + (n - 2) / n, the gate counted from Eq. 13's floor for a thumb
     #: against the other n - 1 fingers (controllers.grasp.score.opposition_floor: 0.5 for
     #: four contacts, 1/3 for three), because a lateral hand's fingers all stand across the
     #: block from its thumb; the gate's paper values, 0.4, before any grasp above them, and
-    #: before the pinch. "paper": S_G <= lateral_gate, whatever the hand (the rule before the
-    #: twenty-first session). Section 3.5 calls where the cutoff sits "completely arbitrary",
-    #: and section 5.2's Wrench Closure runs to convergence; measured in docs/task_cycle.md,
-    #: "Eq. 13's gate counted from the thumb's opposition".
+    #: before the pinch. "paper": S_G <= lateral_gate, whatever the hand (a study setting,
+    #: ``--lateral-gate-rule``). Section 3.5 calls where the cutoff sits "completely
+    #: arbitrary", and section 5.2's Wrench Closure runs to convergence.
+    #: Measured: docs/findings.md, "Eq. 13's gate counted from the thumb's opposition".
     lateral_gate_rule: str = "opposition"
     #: A lateral squeeze's pressing finger that feels nothing closes again at the closing
     #: speed (controllers.hand.grip.squeeze ``seek``): a balanced lateral squeeze gives a light
-    #: finger a few tenths of a newton, and the force loop then moved it a few millimetres a
-    #: second towards a face the other fingers had pushed away (single_irregular_triangle's
-    #: middle finger, 0.0 of 0.28 N after 2 s). Measured in docs/task_cycle.md, "Eq. 13's gate
-    #: counted from the thumb's opposition".
+    #: finger a few tenths of a newton, and the force loop alone moves it a few millimetres a
+    #: second towards a face the other fingers have pushed away.
+    #: Measured on the lateral bench: docs/findings.md, "A light finger that seeks its face".
     lateral_squeeze_seek: bool = True
     #: A lateral hand leaving a block standing on the table rises until its fingertips clear
-    #: the block's top before it backs off (controllers.deliver.carry.retreat ``clear_top``): backing
-    #: off first dragged blocks set down upright 4-14 cm and tipped them (random 13, 43, 80).
-    #: Measured in docs/task_cycle.md, "A pitched palm's face, and a retreat that rises first".
+    #: the block's top before it backs off (controllers.deliver.carry.retreat ``clear_top``):
+    #: backing off first drags a block set down upright and may tip it.
+    #: Measured on the lateral bench: docs/findings.md, "A retreat that rises first".
     lateral_retreat_rise: bool = True
     #: A lateral squeeze presses with the normal forces that hold the block's perceived weight
     #: with the most friction to spare at the planned contacts, each at most GRIP_FORCE
     #: (controllers.grasp.holding: a 3-D grasp force programme, clarabel); False: the shares
     #: that balance the planned contacts by least squares, without the weight or the friction
-    #: cones (controllers.hand.grip.balanced_shares). Measured in docs/task_cycle.md, "A squeeze that
-    #: holds the weight".
+    #: cones (controllers.hand.grip.balanced_shares).
+    #: Measured on the lateral bench: docs/findings.md, "A squeeze that holds the weight".
     lateral_holding_forces: bool = True
     #: The sampled lateral pre-shape search tries, within each band of S_G, the palm poses
     #: whose grasp keeps a friction reserve by the 3-D model (controllers.hand.lateral_squeeze)
-    #: before those whose grasp does not. Measured in docs/task_cycle.md, "A squeeze that holds
-    #: the weight".
+    #: before those whose grasp does not.
+    #: Measured on the lateral bench: docs/findings.md, "A squeeze that holds the weight".
     lateral_reserve_first: bool = True
     #: The sampled lateral pre-shape search tries the palm poses whose grasp keeps a friction
     #: reserve by the 3-D model in every band of S_G before any whose grasp does not (the bands
     #: searched once for each tier of ``lateral_reserve_margin``, in their order).
-    #: On the bench of record a lifted grasp without a reserve lost its block 19 times in 51
-    #: (random seeds 0-199) and 16 in 27 (200-299), one with a reserve 20 in 165 and 17 in 85.
-    #: Set from those counts, before any episode with it ran. Measured together with the
-    #: far-side palm and the next pitch (random seeds 0-99: 92 / 100 against 89; 100-199: 86
-    #: against 84; 200-299: 78 against 79) in docs/task_cycle.md, "A far-side palm, the next
-    #: pitch, and grasps that hold before the bands".
+    #: Measured on the lateral bench: docs/findings.md, "Grasps that hold before the bands".
     lateral_reserve_before_bands: bool = True
     #: With ``lateral_reserve_before_bands``, the search's first pass takes only the grasps
     #: whose friction reserve by the 3-D model is at least this (N), then a pass takes those
-    #: that keep less but some, then the rest (0: the two passes before the margin). A finger
-    #: presses as hard as the tendon hand's estimate says (hand_sim.contact_estimate), whose error's
-    #: 90th percentile per finger was 1.0-1.6 N at the squeeze's forces (docs/models.md,
-    #: measured before this margin): a reserve below that is within what the squeeze cannot
-    #: tell. Chosen after looking at the lifts of the 300-seed bench by reserve (lost: 38 % of
-    #: lifts kept 0-0.5 N, 15 % of 0.5-1 N, 1 of 116 above 1 N), so seeds 0-299 do not judge
-    #: it alone. Measured with the wrist roll turned above on those seeds (269 / 300 against
-    #: 256 / 300) in docs/task_cycle.md, "A wrist roll turned above, and a reserve the squeeze
-    #: can tell".
+    #: that keep less but some, then the rest (0: the two passes without a margin; the recovery
+    #: tests use it to reach a grasp that slips at the lift). A finger presses as hard as the
+    #: tendon hand's estimate says (hand_sim.contact_estimate), whose error's 90th percentile
+    #: per finger is 1.0-1.6 N at the squeeze's forces (docs/models.md): a reserve below that is
+    #: within what the squeeze cannot tell.
+    #: Chosen by the lifts of the lateral bench: docs/findings.md, "A reserve the squeeze can tell".
     lateral_reserve_margin: float = 1.0
-    #: The sampled lateral pre-shape search tries, within each band of S_G, the palm poses in
-    #: the order of their grasp's friction reserve by the 3-D model, the most to spare first
-    #: (instead of the nearest palm and least reach load first, the reserve's sign before
-    #: them by ``lateral_reserve_first``). Measured on seeds 0-99 (85 / 100 with and
-    #: without) in docs/task_cycle.md, "A set-down aimed off the place point".
-    lateral_reserve_order: bool = False
     #: With ``--model 3d``, when Posture Control finds no arm posture for a finished top grasp's
     #: contacts at the task's common height, it searches at the next-best common heights (by
     #: the worst-task S_G, 5 mm apart), once per synthesis: this many heights in all (1: only
-    #: the task's). controllers.grasp.task_height.HEIGHT_TRIES, set before any result with it
-    #: was seen (docs/grasp3d_physics.md, "The next-best common heights in the task cycle").
+    #: the task's; controllers.grasp.task_height.HEIGHT_TRIES).
+    #: Set before any result with it was seen: docs/findings.md, "The next-best common heights".
     height_tries: int = HEIGHT_TRIES
     #: Regrasps after the contacts stay out of reach, and how a top grasp's hand is turned (rad)
-    #: for each. Four, not two: over random scenes 0-29 (pi) the third and fourth regrasps
-    #: delivered the three episodes whose contacts stayed out of reach after two (two hexagons,
-    #: a pentagon; 27 -> 30 of 30 on those seeds, at 100-190 s of wall time each).
+    #: for each (``regrasp_rolls``).
+    #: Chosen by its effect on the bench: docs/findings.md, "Four regrasps".
     max_regrasps: int = 4
     #: Lateral grasps: times a block that slipped at the lift (and still stands where the
     #: overhead camera sees it, as modelled) is grasped again, from the next palm pose, each
-    #: counting as a regrasp (the lift as the grasp's test, fsm.handlers.look_again). One, set
-    #: before any episode with it ran.
+    #: counting as a regrasp (the lift as the grasp's test, fsm.recovery.look_again).
+    #: Set before any episode with it ran: docs/findings.md, "The lift as the grasp's test".
     lift_retries: int = 1
-    #: Lateral grasps: the lift first raises the palm this far (m), at the full lift's peak
-    #: acceleration, and tests the hold there (:func:`fsm.handlers.deliver.lift_held`, the
-    #: wrist's load and the pads); a block the hand does not hold is lowered back onto the
-    #: table and grasped again (``lift_retries``) instead of slipping from the full lift's
-    #: height. 0 (the default): one lift, tested at the top. With 0.01 (1 cm, set before any
-    #: episode with it ran) random seeds 0-99 delivered 80 / 100 against 85 / 100 without:
-    #: measured in docs/task_cycle.md, "A trial lift, measured and not kept".
-    lateral_trial_lift: float = 0.0
     #: Lateral grasps: after a grasp lost its block at the lift, the regrasp takes only palm
     #: poses whose grasp keeps more friction in reserve by the 3-D model than the one that
-    #: slipped (strictly more, in their usual order; set before any episode with it ran), and
-    #: the next pose as before only where none is left (fsm.handlers.coarse_reach). Random seeds
-    #: 0-99: 86 / 100 against 85; 100-149: 38 / 50 against 38; 150-199: 41 / 50 against 40.
-    #: Measured in docs/task_cycle.md, "The regrasp after a slip keeps more reserve".
+    #: slipped (strictly more, in their usual order), and the next pose in order only where
+    #: none is left (fsm.handlers.coarse_reach).
+    #: Measured: docs/findings.md, "The regrasp after a slip keeps more reserve".
     lateral_retry_by_reserve: bool = True
     #: Lateral grasps: a block that the hand still holds at the top of the lift, but whose
     #: pressing fingertips moved more than this (m) in the palm's frame as it rose (it turned or
     #: slid in the hand: sensed by the hand's kinematics), is lowered back onto the table and
     #: grasped again (``lift_retries``), instead of being carried tilted and set down on an
-    #: edge; with no lift retry left it is carried as held. 0 turns it off. 2 mm, chosen after
-    #: looking at ten episodes' fingertips (0.1-0.7 mm where the block was delivered, 2.6-4.2
-    #: mm where it turned or slipped). Random seeds 0-99: 87 / 100 against 86 with 0; 100-149:
-    #: 38 / 50 against 38; 150-199: 42 / 50 against 41. Measured in docs/task_cycle.md, "A block
-    #: that turns in the hand at the lift".
+    #: edge; with no lift retry left it is carried as held. 0 turns it off.
+    #: Chosen by the fingertips' motion: docs/findings.md, "A block that turns in the hand".
     lateral_tip_motion_limit: float = 0.002
     #: Lateral grasps: Coarse Reach first asks whether a hand holding the block as its goal
     #: would can set it down at the place point, and where it cannot, takes the first goal
     #: pitched further down (controllers.reach.coarse.LATERAL_TILTS) whose hand can
-    #: (fsm.handlers.set_down_pitch). Set before any bench episode with it ran. Random seeds
-    #: 0-99: 89 / 100 against 87 without; 100-149: 39 / 50 against 38; 150-199: 44 / 50
-    #: against 42. Measured in docs/task_cycle.md, "A lateral approach pitched for its
-    #: set-down".
+    #: (controllers.preshape.set_down_check.pitch_for_set_down).
+    #: Measured: docs/findings.md, "A lateral approach pitched for its set-down".
     lateral_set_down_pitch: bool = True
     #: Lateral grasps: the sampled pre-shape's palm-pose search passes over a pose whose grasp
     #: (the hand at its contacts) cannot set the block down at the place point, as it passes
-    #: over one whose approach collides (fsm.handlers.set_down_pitch.SetDownGate), until this
-    #: many poses have been passed over for it in one search. Then, while a lateral axis pitched
-    #: further down is left (controllers.reach.coarse.LATERAL_TILTS), Coarse Reach is entered again for
-    #: it; at the last pitch the poses after are taken unasked. 0 turns it off. 4 was set before
-    #: any bench episode with the gate ran. Random seeds 0-99: 89 / 100 against 89 without;
-    #: 100-149: 40 / 50 against 39; 150-199: 44 / 50 against 44. Measured in docs/task_cycle.md,
-    #: "Each grasp asked for its own set-down".
+    #: over one whose approach collides (controllers.preshape.set_down_check.SetDownGate),
+    #: until this many poses have been passed over for it in one search. Then, while a lateral
+    #: axis pitched further down is left (controllers.reach.coarse.LATERAL_TILTS), Coarse Reach
+    #: is entered again for it; at the last pitch the poses after are taken unasked. 0 turns it
+    #: off.
+    #: Measured on the lateral bench: docs/findings.md, "Each grasp asked for its own set-down".
     lateral_grasp_set_down_checks: int = 4
     regrasp_rolls: tuple[float, ...] = (np.pi / 4, -np.pi / 4, np.pi / 2, -np.pi / 2)
     #: The held load must be at least this share of the perceived block's weight after the lift,
@@ -217,9 +172,8 @@ class TaskConfig:
     #: A carried block counts as dropped when, over ``drop_window`` control periods, fewer than
     #: two pads feel it; after the carry, at rest, the wrist sensor must still show
     #: ``min_held_share`` of its weight. (The wrist's load while the arm moves is not a drop
-    #: sensor: the accelerometer at the wrist does not see the hand's rotational accelerations,
-    #: and on clutter5's third block the estimate of a 0.5 N block fell below 0.15 N over 0.3 s
-    #: while all four pads held it at 2-5 N.)
+    #: sensor: the accelerometer at the wrist does not see the hand's rotational accelerations;
+    #: docs/findings.md, "The wrist is not a drop sensor".)
     drop_window: int = 15
     #: Place slots a later cycle tries when the hand cannot set its block down at the first.
     max_place_slots: int = 4
@@ -252,10 +206,6 @@ class TaskConfig:
                 raise ValueError(
                     f"{name} must be a whole number of {what}, 0 or more; got {count!r}"
                 )
-        if not (np.isfinite(self.lateral_trial_lift) and 0.0 <= self.lateral_trial_lift < 0.05):
-            raise ValueError(
-                f"lateral_trial_lift must lie in [0, 0.05) m; got {self.lateral_trial_lift!r}"
-            )
         if not (
             np.isfinite(self.lateral_tip_motion_limit)
             and 0.0 <= self.lateral_tip_motion_limit < 0.02

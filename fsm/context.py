@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -22,15 +22,20 @@ from controllers.hand.reachability import HandReach
 from controllers.reach.coarse import CoarseReachPlan, ReachTarget
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
+from fsm.states import Failure
 from hand_sim.world import DEFAULT_HAND, HAND_KINDS, World
+
+if TYPE_CHECKING:
+    from controllers.hand.finger_samples import FingerSamples
+    from controllers.preshape.palm_candidates import PalmPose
+    from vision import ObjectModel, Selection
 
 #: Controllers and approaches the command line accepts.
 CONTROLLERS = ("pi", "kb", "ql")
 APPROACH_CHOICES = ("auto", "top", "lateral")
 #: Grasp models of a top grasp (``--model``).
 GRASP_MODELS = ("planar", "3d")
-#: The default: the 3-D model delivers as often as the planar one over random seeds 0-199 and
-#: its grasps hold far more often in the physical study (docs/grasp3d_physics.md, "Which default").
+#: Chosen by the bench and the physical study: docs/findings.md, "Which grasp model by default".
 DEFAULT_GRASP_MODEL = "3d"
 #: Hands the arm can carry (``--hand``; hand_sim.assembly.HAND_KINDS).
 HANDS = HAND_KINDS
@@ -92,7 +97,7 @@ class CycleRecord:
     #: base's side: controllers.reach.coarse.plan_coarse_reach)
     approach_far_side: bool = False
     #: under --approach auto, the approach given up because its grasp proved unreachable at its
-    #: end, and why ("top: contact unreachable ...": fsm.handlers.other_approach); "" otherwise
+    #: end, and why ("top: contact unreachable ...": fsm.recovery.other_approach_left); "" otherwise
     approach_given_up: str = ""
     polygon: list[list[float]] | None = None  #: perceived vertices, object frame (m)
     polygon_error: dict[str, float] | None = None  #: against the true footprint
@@ -164,8 +169,8 @@ class Episode:
     place_footprints: list[NDArray[np.float64]] = field(default_factory=list)
     place_radius: float = 0.0
     # Select/Model
-    selection: Any | None = None  #: vision.Selection of the current view
-    model: Any | None = None  #: vision.ObjectModel of the picked block
+    selection: Selection | None = None  #: the current view, segmented into blocks
+    model: ObjectModel | None = None  #: the picked block as vision models it
     target: ReachTarget | None = None
     planning: mujoco.MjModel | None = None
     prism: PerceivedPrism | None = None
@@ -180,43 +185,44 @@ class Episode:
     empty_hand_force: NDArray[np.float64] | None = None
     expected_load: float = 0.0  #: N, perceived volume x wood density x g
     #: sampled finger postures for lateral reachability searches (drawn on first use)
-    finger_samples: Any | None = None
+    finger_samples: FingerSamples | None = None
     #: a top grasp's palm poses of the last palm-pose search and what they were computed from
     #: (the world's qpos, the coarse reach's palm rotation, the target and planning model): a
     #: search repeated before anything has moved takes them again
-    top_poses: tuple[tuple[Any, ...], list[Any]] | None = None
+    top_poses: tuple[tuple[bytes, bytes, int, int], list[PalmPose]] | None = None
     #: a lateral grasp's last contacts the hand reached in this synthesis: (theta, contacts,
     #: reach, step), or None
-    last_reachable: tuple[Any, ...] | None = None
+    last_reachable: tuple[NDArray[np.float64], FingerContacts, HandReach, int] | None = None
     #: the lateral pre-shape's contacts (a FingerContacts the reach test passed at its palm
     #: pose): Fine Reach's targets and the grasp controller's start; None without one
     preshape_contacts: FingerContacts | None = None
     #: the hand posture (16,) that took the sampled pre-shape's contacts in its reach test: the
     #: hand IK's start of the reach tests that follow (None without a sampled pre-shape)
-    preshape_hand_q: Any | None = None
+    preshape_hand_q: NDArray[np.float64] | None = None
     #: the wrist rolls (rad) about the approach axis Posture Control's lateral search keeps
     #: after a sampled pre-shape taken at ``PalmPoseParams.lateral_more_rolls``; None: its own
     preshape_rolls: tuple[float, ...] | None = None
     #: after a lateral grasp failed with the fingers on the block and the camera looked again
-    #: (fsm.handlers.look_again): (Failure, reason) the episode fails with when Coarse Reach
+    #: (fsm.recovery.look_again): (Failure, reason) the episode fails with when Coarse Reach
     #: finds no further palm pose; None otherwise
-    regrasp_failure: tuple[Any, str] | None = None
+    regrasp_failure: tuple[Failure, str] | None = None
     #: after a lateral grasp lost its block at the lift, with
     #: ``config.lateral_retry_by_reserve``: that grasp's friction reserve (N, -inf where no
     #: forces held the weight by the 3-D model); the next pre-shapes take only grasps above it
     #: while any is left. None otherwise
     retry_floor: float | None = None
     #: after the lateral pre-shape search passed over ``config.lateral_grasp_set_down_checks``
-    #: grasps that could not set the block down (fsm.handlers.set_down_pitch.SetDownGate): the
-    #: pitch (rad) of the lateral axis Coarse Reach takes at least; inf once no further pitch
-    #: had a path (the gate then takes poses unasked once spent); None otherwise
+    #: grasps that could not set the block down
+    #: (controllers.preshape.set_down_check.SetDownGate): the pitch (rad) of the lateral axis
+    #: Coarse Reach takes at least; inf once no further pitch had a path (the gate then takes
+    #: poses unasked once spent); None otherwise
     set_down_floor: float | None = None
     #: under --approach auto, the approaches given up in this cycle because their grasp proved
-    #: unreachable at their end (fsm.handlers.other_approach); Coarse Reach plans the others
+    #: unreachable at their end (fsm.recovery.other_approach_left); Coarse Reach plans the others
     closed_approaches: tuple[str, ...] = ()
     #: the finished top 3-D synthesis whose next-best common heights Posture Control has
     #: searched (once per synthesis), or None
-    heights_searched: Any | None = None
+    heights_searched: GraspSynthesis3D | None = None
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
 
     @property

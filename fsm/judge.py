@@ -1,6 +1,5 @@
-"""Is the block really placed? The physical judgement of one delivery (issue 9, "Success is
-physical"), from the simulation's true state after the hand has retreated; nothing is read back
-from a commanded target.
+"""Is the block really placed? The physical judgement of one delivery, from the simulation's
+true state after the hand has retreated; nothing is read back from a commanded target.
 
 A delivery succeeds when the block is within :data:`PLACE_TOLERANCE` of the place point
 (horizontally), upright (tilt under :data:`MAX_TILT_DEG`), at rest (under :data:`MAX_SPEED` and

@@ -1,29 +1,30 @@
 """Where an episode starts and where blocks go: the scene for a seed, and free place slots for
 ``--cycles all``.
 
-Seeds: a random scene is drawn from its seed (``hand_sim.random_scene``). A scene file is a fixed
-layout; seed 0 runs it exactly as written, and seed N > 0 runs it with every block's pose jittered
-(position by up to :data:`JITTER_POSITION`, yaw by up to :data:`JITTER_YAW_DEG`, uniform, drawn
-from the seed), as a table laid out by hand twice is never the same. A jitter that would break
-the scene's rules (gaps, table edge) is drawn again, up to :data:`JITTER_ATTEMPTS` times.
+Seeds: :func:`episode_scene` (:mod:`hand_sim.scene_seed`, shared with ``vision`` and
+``hand_sim.show``) draws a random scene from its seed and jitters a scene file's block poses for
+a seed > 0.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hand_sim.errors import SceneError
 from hand_sim.geometry import convex_polygon_distance
-from hand_sim.scene import Scene, TableSpec, load_scene, validate_scene
+from hand_sim.scene import TableSpec
+from hand_sim.scene_seed import episode_scene
 
-#: Pose jitter of scene files for seeds > 0: position (m, per axis) and yaw (deg).
-JITTER_POSITION = 0.01
-JITTER_YAW_DEG = 20.0
-JITTER_ATTEMPTS = 100
+__all__ = [
+    "ASKED_CLEARANCE",
+    "SLOT_CLEARANCE",
+    "SLOT_SEARCH_RADIUS",
+    "SLOT_SPACING",
+    "episode_scene",
+    "free_slot",
+    "place_is_free",
+]
+
 #: Place slots: spacing (m) of the candidate grid, clearance (m) kept between a slot's block
 #: and any other block's footprint, and the largest distance (m) searched from the first place.
 SLOT_SPACING = 0.08
@@ -32,38 +33,6 @@ SLOT_CLEARANCE = 0.03
 #: there at all (closer than the scenes' smallest block gap to another block).
 ASKED_CLEARANCE = 0.005
 SLOT_SEARCH_RADIUS = 0.35
-
-
-def episode_scene(name: str, seed: int, blocks: int | None = None) -> Scene:
-    """The scene an episode runs: ``random`` drawn from ``seed``, a scene file jittered for
-    ``seed`` > 0 (see the module docstring)."""
-    if name == "random":
-        return load_scene(name, seed=seed, blocks=blocks)
-    if blocks is not None:
-        raise SceneError("--blocks applies to the random scene only")
-    scene = load_scene(name)
-    if seed == 0:
-        return scene
-    rng = np.random.default_rng(seed)
-    for _ in range(JITTER_ATTEMPTS):
-        moved = tuple(
-            dataclasses.replace(
-                b,
-                position=tuple(
-                    float(v)
-                    for v in np.asarray(b.position) + rng.uniform(-1, 1, 2) * JITTER_POSITION
-                ),
-                yaw=b.yaw + math.radians(float(rng.uniform(-1, 1)) * JITTER_YAW_DEG),
-            )
-            for b in scene.blocks
-        )
-        candidate = dataclasses.replace(scene, blocks=moved)
-        try:
-            validate_scene(candidate, f"{scene.name} (seed {seed})")
-        except SceneError:
-            continue
-        return candidate
-    return scene
 
 
 def place_is_free(

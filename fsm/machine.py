@@ -296,7 +296,7 @@ def _loop(
             following, reason = step.next, step.reason
             if not allowed(state, following):
                 raise RuntimeError(f"the machine went from {state.value} to {following.value}")
-        except Exception as e:  # every failure gets a name (issue 22)
+        except Exception as e:  # every failure gets a name
             failure, detail = _failure_for(state, e)
             following, reason = State.FAILED, f"{failure.value}: {detail}"
             result.failure, result.failure_detail = failure.value, detail

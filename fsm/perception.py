@@ -1,6 +1,6 @@
 """Select/Model's perception bookkeeping (section 5.2, Select/Model): the overhead view
-segmented into blocks, which block a cycle picks, the other blocks' footprints, and the place
-point of the cycle."""
+segmented into blocks, which block a cycle picks, the picked block's model taken into the
+episode, the other blocks' footprints, and the place point of the cycle."""
 
 from __future__ import annotations
 
@@ -10,13 +10,17 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.hand.finger_geometry import PerceivedPrism
+from controllers.planning.belief import planning_model
 from controllers.preshape.palm_candidates import robot_base_xy
-from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
+from controllers.reach.coarse import ReachTarget
+from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, Episode, EpisodeOptions
 from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
+from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, TaskFailedError
 from hand_sim.geometry import point_in_convex_polygon
 from hand_sim.world import World
-from vision import Observation, Selection, VisionError, analyze, overhead_camera
+from vision import ObjectModel, Observation, Selection, VisionError, analyze, overhead_camera
 
 
 def perceive(world: World) -> Selection:
@@ -26,6 +30,32 @@ def perceive(world: World) -> Selection:
         obs = Observation.capture(cam)
     names = {b.name: world.block_pose(b.name)[0][:2] for b in world.scene.blocks}
     return analyze(obs, names)
+
+
+def adopt_model(ep: Episode, name: str, model: ObjectModel) -> None:
+    """Take ``model`` as the picked block's (named ``name`` in the scene): the reach target, the
+    perceived prism the fingers keep clear of, and the planning model the arm's paths avoid."""
+    world = ep.world
+    ep.model = model
+    ep.target = ReachTarget.from_object_model(model)
+    ep.prism = PerceivedPrism.of(ep.target, world.scene.table.height)
+    ep.planning = planning_model(
+        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
+    )
+
+
+def log_view(ep: Episode, model: ObjectModel) -> None:
+    """Record the overhead view Select/Model looked at and the picked block's model in it."""
+    ep.recorder.log_vision(
+        VisionView(
+            ep.selection.observation.rgb,
+            ep.selection.observation.geometry.K,
+            ep.selection.observation.geometry.cam_to_world,
+            model.world_vertices,
+            model.pixel_contour,
+            float(model.centroid[2]),
+        )
+    )
 
 
 def on_table(world: World, selection: Selection, index: int) -> bool:

@@ -74,8 +74,8 @@ def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
         default=DEFAULT_GRASP_MODEL,
         choices=GRASP_MODELS,
         help="grasp model of a top grasp: planar (the paper's controllers, contacts at the "
-        "fingertips' height) or 3d (contacts with heights, set by moment closure and the task; "
-        "docs/grasp3d_physics.md)",
+        "fingertips' height) or 3d (contacts with heights, set by moment closure and the task); "
+        'docs/findings.md, "Which grasp model by default"',
     )
 
 
@@ -97,10 +97,10 @@ def add_hand(ap: argparse.ArgumentParser) -> None:
         "--hand",
         default=DEFAULT_HAND,
         choices=HANDS,
-        help="the hand on the arm: tendon (default; the Utah/MIT hand as built, "
-        "models/utah_mit_hand/: 32 pull-only tendons, joint PD loop every physics step) or servo "
-        "(models/hand.xml, 16 position servos; the hand of the results measured before it; "
-        "docs/models.md)",
+        help="the hand on the arm: tendon (default; the Utah/MIT hand's tendon model, "
+        "models/utah_mit_hand/: every joint turned by two pull-only tendons of its own, a joint "
+        "PD loop every physics step) or servo (models/hand.xml, 16 position servos); "
+        "docs/models.md",
     )
 
 
@@ -128,7 +128,8 @@ def add_lateral_gate(ap: argparse.ArgumentParser) -> None:
         help="S_G (Eq. 13) a lateral grasp must reach, as --lateral-gate-rule counts it; the "
         "default is the paper's. "
         "A study setting: above it, a lateral pre-shape scoring up to the gate "
-        "is taken only where none scores the paper's (docs/task_cycle.md)",
+        "is taken only where none scores the paper's (docs/findings.md, \"Eq. 13's gate bounds "
+        'the lateral grasp")',
     )
     ap.add_argument(
         "--lateral-gate-rule",
@@ -137,7 +138,7 @@ def add_lateral_gate(ap: argparse.ArgumentParser) -> None:
         help="how the gate applies to a lateral grasp of n contacts: opposition (default), "
         "counted from Eq. 13's floor for the thumb against the other n-1 fingers, "
         "(n-2)/n, after every grasp within the gate itself; paper, the gate itself "
-        "(docs/task_cycle.md)",
+        "(docs/findings.md, \"Eq. 13's gate counted from the thumb's opposition\")",
     )
 
 
@@ -216,7 +217,7 @@ def parser() -> ArgumentParser:
     ap.add_argument(
         "--models",
         default=None,
-        help="trained models folder from `python -m controllers.grasp reproduce --out DIR` "
+        help="trained models folder from `python -m experiments.paper reproduce --out DIR` "
         "(default: the shipped ones)",
     )
     add_hand(ap)

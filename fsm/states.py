@@ -107,7 +107,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.FINE_REACH,
             "the hand is near the block in its pre-shape, top or lateral",
             16.0,  # the reach takes 2-5 s; a finger held off adds the regrasp's repositioning
-            # back to Coarse Reach: under auto, the other approach (fsm.handlers.other_approach)
+            # back to Coarse Reach: under auto, the other approach
+            # (fsm.recovery.other_approach_left)
             (State.POSTURE_CONTROL, State.FINE_REACH, State.COARSE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
@@ -116,7 +117,8 @@ TRANSITIONS: dict[State, StateSpec] = {
             "fingertips near the block's surface (after Fine Reach) or contacts to make reachable "
             "(from Wrench Closure)",
             12.0,  # a repositioning: retract, back out, move, pre-shape, approach (up to ~8 s)
-            # back to Coarse Reach: under auto, the other approach (fsm.handlers.other_approach)
+            # back to Coarse Reach: under auto, the other approach
+            # (fsm.recovery.other_approach_left)
             (State.FINE_REACH, State.WRENCH_CLOSURE, State.COARSE_REACH),
             (Failure.CONTACT_UNREACHABLE,),
         ),
@@ -131,7 +133,7 @@ TRANSITIONS: dict[State, StateSpec] = {
             State.GRASP_OBJECT,
             "a converged grasp (S_G <= 0.4) whose contacts the hand reaches",
             # closing and squeezing take 3-5 s; a miss adds the regrasp's repositioning (a
-            # lateral one's release, retreat and park, fsm.handlers.look_again: up to ~12 s)
+            # lateral one's release, retreat and park, fsm.recovery.look_again: up to ~12 s)
             30.0,
             (State.DELIVER, State.FINE_REACH, State.COARSE_REACH),
             (Failure.FINGERS_CANNOT_REACH,),

@@ -52,8 +52,8 @@ TIMESTEP = 0.002
 INTEGRATOR = "implicitfast"
 CONE = "elliptic"
 IMPRATIO = 10.0
-#: MuJoCo's soft contacts let a held object creep: under its weight a grasped block turned
-#: steadily in the fingers (6 deg in 2 s) until it fell. The noslip solver's post-processing of
+#: MuJoCo's soft contacts let a held object creep: under its weight a grasped block turns
+#: steadily in the fingers (6 deg in 2 s) until it falls. The noslip solver's post-processing of
 #: the friction forces stops the creep (docs/models.md).
 NOSLIP_ITERATIONS = 5
 

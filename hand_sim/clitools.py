@@ -53,7 +53,8 @@ from graspsim_base.cli import (
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.errors import HandSimError
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS
-from hand_sim.scene import RANDOM_SCENE
+from hand_sim.scene import RANDOM_SCENE, Scene
+from hand_sim.scene_seed import episode_scene
 
 #: Errors a hand_sim command reports as bad input (scene files, scene names, image sizes, a
 #: simulation that went wrong, and the polygons scenes are made of).
@@ -65,15 +66,17 @@ image_height = integer(16, MAX_RENDER_HEIGHT)
 
 
 def add_scene_arguments(parser: argparse.ArgumentParser, scene_help: str, blocks_help: str) -> None:
-    """``--scene`` (default clutter3) and, for ``--scene random`` only, ``--seed`` and
-    ``--blocks`` (default None: the random scene's own; :func:`check_scene_arguments` refuses them
-    with another scene). ``blocks_help`` starts the help of ``--blocks``."""
+    """``--scene`` (default clutter3), ``--seed`` (default 0) and, for ``--scene random`` only,
+    ``--blocks`` (default None: the random scene's own; :func:`check_scene_arguments` refuses it
+    with another scene). The seed picks the layout as ``python -m fsm.run`` does
+    (:func:`scene_from_arguments`). ``blocks_help`` starts the help of ``--blocks``."""
     parser.add_argument("--scene", default="clutter3", help=scene_help)
     parser.add_argument(
         "--seed",
         type=seed,
-        default=None,
-        help=f"seed of --scene random, 0..{SEED_MAX} (default 0)",
+        default=0,
+        help=f"draws --scene random; jitters a scene file's block poses when > 0 (the layout "
+        f"`python -m fsm.run` runs for the same --scene and --seed), 0..{SEED_MAX}",
     )
     parser.add_argument(
         "--blocks",
@@ -84,14 +87,17 @@ def add_scene_arguments(parser: argparse.ArgumentParser, scene_help: str, blocks
 
 
 def check_scene_arguments(args: argparse.Namespace) -> None:
-    """Refuse ``--seed`` or ``--blocks`` (:func:`add_scene_arguments`) with a scene other than
-    ``random``."""
-    if args.scene != RANDOM_SCENE:
-        for flag, value in (("--seed", args.seed), ("--blocks", args.blocks)):
-            if value is not None:
-                raise CommandLineError(
-                    flag, f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
-                )
+    """Refuse ``--blocks`` (:func:`add_scene_arguments`) with a scene other than ``random``."""
+    if args.scene != RANDOM_SCENE and args.blocks is not None:
+        raise CommandLineError(
+            "--blocks", f"applies to --scene {RANDOM_SCENE} only, not to {args.scene!r}"
+        )
+
+
+def scene_from_arguments(args: argparse.Namespace) -> Scene:
+    """The scene of ``--scene``, ``--seed`` and ``--blocks``: the layout ``python -m fsm.run``
+    runs for them (:func:`hand_sim.scene_seed.episode_scene`)."""
+    return episode_scene(args.scene, args.seed, args.blocks)
 
 
 def add_image_size_arguments(
@@ -144,5 +150,6 @@ __all__ = [
     "prepare_file",
     "run_command",
     "run_main",
+    "scene_from_arguments",
     "seed",
 ]

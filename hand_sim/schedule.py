@@ -1,9 +1,8 @@
 """Rates of simulated time: what a per-step hook (``World.on_step``) should do now.
 
 A :class:`Rate` is due once per period of *simulated* time, whatever the number of physics steps
-between two ticks; a :class:`RateSchedule` asks several named rates at once. Telemetry uses them
-to log body poses, images, scalars and contacts each at its own rate
-(:mod:`hand_sim.telemetry`).
+between two ticks; a :class:`RateSchedule` asks several named rates at once. Telemetry uses them to
+log body poses, images, scalars and contacts each at its own rate (:mod:`hand_sim.telemetry`).
 """
 
 from __future__ import annotations

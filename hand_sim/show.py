@@ -1,6 +1,7 @@
-"""Demo: ``python -m hand_sim.show --scene clutter3 --out DIR``.
+"""Demo: ``python -m hand_sim.show --scene clutter3 [--seed N] --out DIR``.
 
-Builds a scene (section 5's table of blocks, the arm and the hand), lets the blocks settle, saves
+Builds a scene (section 5's table of blocks, the arm and the hand; ``--seed`` gives the layout
+``python -m fsm.run`` runs for the same ``--scene`` and ``--seed``), lets the blocks settle, saves
 the overhead image as ``DIR/overhead.png`` and records to ``DIR/episode.rrd`` the arm moving
 through a few joint targets (with the hand closing and opening), so the models can be inspected in
 the rerun viewer (``rerun DIR/episode.rrd``). The overhead image is 1920x1440 pixels by default,
@@ -29,7 +30,6 @@ from hand_sim.camera import OverheadCamera
 from hand_sim.errors import HandSimError
 from hand_sim.recorder import Recorder
 from hand_sim.robot import ARM_JOINTS, FINGERS
-from hand_sim.scene import load_scene
 from hand_sim.world import World
 
 PROG = "python -m hand_sim.show"
@@ -160,7 +160,7 @@ def log_state(world: World, rec: Recorder) -> None:
 
 def run_demo(args: argparse.Namespace) -> DemoResult:
     """Build, settle, photograph and record."""
-    scene = load_scene(args.scene, seed=args.seed, blocks=args.blocks)
+    scene = cli.scene_from_arguments(args)
     out: Path = cli.prepare_dir(args.out, "--out")
     world = World.build(scene)
     rrd, png = out / "episode.rrd", out / "overhead.png"

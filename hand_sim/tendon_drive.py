@@ -1,6 +1,6 @@
-"""The actuator layer of the tendon-driven Utah/MIT hand (models/utah_mit_hand, issue 24): desired
-joint angles -> joint torques (a PD loop) -> 32 non-negative tendon tensions, and back from measured
-tensions to joint torques. This is the simulated robot's own joint servo, so it lives in
+"""The actuator layer of the tendon-driven Utah/MIT hand of section 5 (models/utah_mit_hand):
+desired joint angles -> joint torques (a PD loop) -> 32 non-negative tendon tensions, and back from
+measured tensions to joint torques. This is the simulated robot's own joint servo, so it lives in
 ``hand_sim`` beside :class:`~hand_sim.world.World`, which runs it at every physics step when the
 world is built with ``hand="tendon"``; :mod:`controllers.hand.tendon_control` re-exports it and adds
 the standalone loop the model's tests use.

@@ -1,4 +1,4 @@
-"""The house rules of docs/architecture.md, checked on the code as it is: the layers contract
+"""The house rules of docs/contributor_guide.md, checked on the code as it is: the layers contract
 (``lint-imports``, import-linter, with the contracts of pyproject.toml) is kept, an import that
 goes up a layer breaks it, and no module is over 500 lines."""
 
@@ -18,7 +18,18 @@ LAYERED = ("graspsim_base", "controllers", "hand_sim", "vision", "fsm", "experim
 #: Every folder of Python code the 500-line rule covers.
 CODE = (*LAYERED, "benchmarks", "tools", "tests")
 MAX_MODULE_LINES = 500
-CONTRACTS = {"layers", "controllers", "experiments-apart", "grasp-core-pure", "base-small"}
+CONTRACTS = {
+    "layers",
+    "controllers",
+    "no-circles",
+    "experiments-apart",
+    "grasp-core-pure",
+    "base-small",
+}
+#: controllers/' sub-packages by role, top first (each a layer of the "controllers" contract).
+CONTROLLER_LAYERS = ("preshape", "deliver", "hand", "reach", "posture", "planning")
+#: The most modules controllers/ holds at its top level (the rest are in its sub-packages).
+MAX_CONTROLLERS_TOP_MODULES = 8
 
 
 def lint_imports(root: Path) -> subprocess.CompletedProcess[str]:
@@ -41,15 +52,25 @@ def test_the_contracts_are_the_documented_ones() -> None:
     assert set(config["root_packages"]) == set(LAYERED)
     assert {c["id"] for c in config["contracts"]} == CONTRACTS
     layers = next(c for c in config["contracts"] if c["id"] == "layers")["layers"]
-    assert [layer.split(" ")[0].split(".")[0] for layer in layers] == [
+    assert [layer.split(" ")[0] for layer in layers] == [
         "experiments",
         "fsm",
-        "controllers",
+        *(f"controllers.{name}" for name in CONTROLLER_LAYERS),
+        "controllers.errors",
         "vision",
         "hand_sim",
-        "controllers",
+        "controllers.grasp",
         "graspsim_base",
     ]
+    inner = next(c for c in config["contracts"] if c["id"] == "controllers")["layers"]
+    assert [layer.split(" ")[0] for layer in inner] == [*CONTROLLER_LAYERS, "errors", "grasp"]
+
+
+def test_controllers_keeps_its_modules_in_sub_packages() -> None:
+    top = sorted(p.name for p in (REPO / "controllers").glob("*.py"))
+    assert len(top) <= MAX_CONTROLLERS_TOP_MODULES, top
+    packages = {p.parent.name for p in (REPO / "controllers").glob("*/__init__.py")}
+    assert packages == {*CONTROLLER_LAYERS, "grasp"}
 
 
 def test_the_layers_contract_is_kept() -> None:
@@ -77,6 +98,9 @@ def tree_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ("hand_sim/geometry.py", "from vision import analyze", "Each folder one layer"),
         ("controllers/grasp/wrench.py", "import mujoco", "The grasp core is mathematics"),
         ("experiments/paper/tables.py", "import experiments.bench.stats", "do not depend on one"),
+        ("controllers/hand/grip.py", "import controllers.preshape.moves", "controllers/ by role"),
+        ("controllers/reach/coarse.py", "import controllers.deliver.plan", "Each folder one layer"),
+        ("controllers/grasp/polygon.py", "import controllers.grasp.atomic", "No import circle"),
     ],
 )
 def test_an_import_against_the_layers_breaks_the_contract(

@@ -1,4 +1,5 @@
-"""Mutants of ``tools.mutate`` that no test can kill, each with the reason (docs/mutation.md).
+"""Mutants of ``tools.mutate`` that no test can kill, each with the reason
+(docs/contributor_guide.md, "How to test").
 
 An entry names the mutant by its module, the source line it changes (stripped), the column and
 the change, so it still matches after unrelated edits move the line; when the line itself

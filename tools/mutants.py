@@ -1,5 +1,5 @@
-"""Generating the mutants of :mod:`tools.mutate` (docs/mutation.md): each mutant is one small
-change to one module's source, found on the syntax tree.
+"""Generating the mutants of :mod:`tools.mutate` (docs/contributor_guide.md, "How to test"):
+each mutant is one small change to one module's source, found on the syntax tree.
 
 An arithmetic or comparison operator swapped, ``and``/``or`` exchanged, a unary minus or ``not``
 dropped, a number changed (an integer by one, a float by a factor of 2, a tolerance below 1e-3 by

@@ -1,4 +1,4 @@
-"""Mutation testing of the grasp core, the S_G LP, vision edges and scene geometry (issue 14).
+"""Mutation testing of the grasp core, the S_G LP, vision edges and scene geometry.
 
     python -m tools.mutate                     # every mutant, 2 jobs
     python -m tools.mutate --fraction 0.3      # a seeded 30 % sample

@@ -1,4 +1,4 @@
-"""docs/models.md's figure of a finger's tendon tensions during a grasp (issue 24):
+"""docs/models.md's figure of a finger's tendon tensions during a grasp:
 ``docs/models/utah_mit_hand_grasp_tensions.png``.
 
 The tendon-driven hand takes one grasp of the physical study (``python -m experiments.physics``,

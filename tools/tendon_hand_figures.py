@@ -1,4 +1,4 @@
-"""The figures of docs/models.md's tendon-driven hand section (issue 24), drawn from
+"""The figures of docs/models.md's tendon-driven hand section, drawn from
 models/utah_mit_hand/scene.xml:
 
 * ``docs/models/utah_mit_hand_views.png``: the hand in a half-closed posture from the front (the

@@ -1,7 +1,7 @@
 """Select/Model (section 5.2): overhead image -> the selected block's polygon model.
 
 ``analyze(obs)`` segments the view; ``select(obs, pixel=... | name=... | world_point=...)`` (also
-named ``extract_polygon``, as docs/INTERFACES.md calls it) returns an :class:`ObjectModel` or
+named ``extract_polygon``) returns an :class:`ObjectModel` or
 raises a :class:`VisionError`. ``overhead_camera(world)`` sets up the camera as the vision needs.
 """
 

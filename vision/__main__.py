@@ -2,7 +2,10 @@
 block under a mouse click (``--pick-pixel U,V``), a named block (``--name``) or the block
 nearest a world point (``--near X,Y``).
 
-    python -m vision --scene clutter3 --pick-pixel 960,720 [--overlay out.png]
+    python -m vision --scene clutter3 [--seed N] --pick-pixel 960,720 [--overlay out.png]
+
+``--scene`` and ``--seed`` give the layout ``python -m fsm.run`` runs for the same flags (a scene
+file's block poses jittered for a seed > 0), so a pixel read here is a pixel of that episode.
 
 Pixels are (column, row) of the rendered image, 1920x1440 unless --width/--height say otherwise:
 the frame of the ``overhead.png`` that ``python -m hand_sim.show`` writes at its default size.
@@ -19,7 +22,7 @@ import numpy as np
 
 from graspsim_base.files import atomic_path
 from hand_sim import clitools as cli
-from hand_sim.scene import Scene, load_scene
+from hand_sim.scene import Scene
 from vision.clitools import ERRORS, check_on_table, check_pixel
 from vision.errors import VisionError
 from vision.model import ObjectModel
@@ -123,7 +126,7 @@ def _select(args: argparse.Namespace, scene: Scene) -> tuple[Observation, Object
 
 def _run(argv: Sequence[str] | None) -> int:
     args = parse_args(argv)
-    scene = load_scene(args.scene, seed=args.seed, blocks=args.blocks)
+    scene = cli.scene_from_arguments(args)
     if args.near is not None:
         check_on_table(args.near, scene.table, "--near")
     if args.overlay is not None:

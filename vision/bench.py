@@ -43,7 +43,7 @@ RGB_NOISE = 4.0
 DEPTH_NOISE = 0.001
 LIGHT_SCALE = (0.6, 1.3)
 LIGHT_TILT_DEG = 30.0
-#: Acceptance (issue 5): edge counts right, centroid median (mm), vertex 95th percentile (mm).
+#: Acceptance: edge counts right, centroid median (mm), vertex 95th percentile (mm).
 ACCEPT_EDGES = {False: 0.99, True: 0.97}
 ACCEPT_CENTROID_MM = 1.0
 ACCEPT_VERTEX_P95_MM = 3.0

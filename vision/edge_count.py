@@ -73,7 +73,7 @@ def add_missed_lines(
             break
         # refit to the points near the proposed line; when too few lie within the fit distance
         # (a noisy run), the line keeps the run it was proposed from: a line never carries an
-        # empty set of points (merging two such lines once fitted a line to no point at all)
+        # empty set of points (merging two such lines would fit a line to no point at all)
         run = longest_run(usable & (np.abs(extra.distance(pts)) < fit_distance))
         refit = line_from_run(pts, run, centre)
         if refit is None:

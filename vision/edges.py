@@ -1,12 +1,12 @@
 """Sub-pixel edges of a block's top face from colour profiles (section 5.2, the edge detection
 step before the Hough transform).
 
-The rendered image is anti-aliased: a pixel the top face's edge crosses has a colour blended
-from the face's colour and whatever lies just beyond the edge (table, shadow or the block's own
-side face) in proportion to how much of it each covers. So along a profile across the edge, the
-colour's distance from the face colour rises in proportion to the covered fraction, and the
-centroid of that rise locates the edge to a fraction of a pixel without knowing what is
-outside.
+The rendered image is anti-aliased: a pixel the top face's edge crosses has a colour blended from
+the face's colour and whatever lies just beyond the edge (table, shadow or the block's own side
+face) in proportion to how much of it each covers. So along a profile across the edge, the colour's
+distance from the face colour rises in proportion to the covered fraction, and the centroid of that
+rise locates the edge to a fraction of a pixel without knowing what is outside.
+
 All coordinates are pixels (``u`` right, ``v`` down, pixel centres at integers).
 """
 
@@ -80,13 +80,13 @@ def crossings(
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Edge position along each colour profile (S, D, 3) sampled at offsets ``d`` (D,).
 
-    ``c_in`` is the face colour, ``e_est`` (S,) the current edge estimates. The colour's
-    distance from the face colour rises across the edge; the edge is the centroid of that rise
-    (the run of clearly rising samples around the steepest point, before
-    ``e_est + OUTSIDE_OFFSET``). For a pixel-integrated (anti-aliased) step sampled by linear
-    interpolation this is exact, whatever lies beyond the edge: a second, lower step (the side
-    face's far edge) has a falling distance and is left out. Returns the offsets of the edges
-    and which profiles gave one (a rise above ``min_contrast``, the inside looking like the face).
+    ``c_in`` is the face colour, ``e_est`` (S,) the current edge estimates. The colour's distance
+    from the face colour rises across the edge; the edge is the centroid of that rise (the run of
+    clearly rising samples around the steepest point, before ``e_est + OUTSIDE_OFFSET``). For a
+    pixel-integrated (anti-aliased) step sampled by linear interpolation this is exact, whatever
+    lies beyond the edge: a second, lower step (the side face's far edge) has a falling distance and
+    is left out. Returns the offsets of the edges and which profiles gave one (a rise above
+    ``min_contrast``, the inside looking like the face).
     """
     dist = np.linalg.norm(prof - c_in, axis=2)  # (S, D)
     slope = np.diff(dist, axis=1)  # rise between samples k and k + 1

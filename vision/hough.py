@@ -26,10 +26,9 @@ HOUGH_THETA = np.pi / 360.0
 HOUGH_CANDIDATES = 12
 #: Hough accumulator threshold (votes = edge points on a line).
 MIN_VOTES = 4
-#: Edge points within this distance (px) of a Hough line support it; the line is refit to the
-#: points within a given distance of its first fit: LOOSE_FIT_DISTANCE for sub-pixel points
-#: from colour in the first pass, COARSE_FIT_DISTANCE for points from the depth mask (whole
-#: pixels).
+#: Edge points within this distance (px) of a Hough line support it; the line is refit to the points
+#: within a given distance of its first fit: LOOSE_FIT_DISTANCE for sub-pixel colour points in
+#: :mod:`vision.contour`'s pass 1, COARSE_FIT_DISTANCE for the depth mask's (whole pixels).
 SUPPORT_DISTANCE = 0.8
 LOOSE_FIT_DISTANCE = 0.6
 COARSE_FIT_DISTANCE = 0.7

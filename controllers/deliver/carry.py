@@ -131,7 +131,7 @@ def lift(
     duration: float = LIFT_TIME,
 ) -> LiftResult:
     """Lift the palm straight up by ``height`` while the grip holds the block (ramped, not a
-    step: a step command slipped the block by 2 cm), then hold still for a moment."""
+    step: a step command slips the block by 2 cm), then hold still for a moment."""
     if not 0.0 < height < 0.5:
         raise ReachError(f"lift height must lie in (0, 0.5) m, got {height}")
     b0 = world.block_pose(block)[0][2]

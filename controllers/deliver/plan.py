@@ -222,7 +222,7 @@ def plan_delivery(
     checker = CollisionChecker(world, clearance=clearance, hand_q=hand_q, carried=block, qpos=state)
     # the set-down's last 2 * clearance is exempt above (the block nears the table); the hand's
     # links must still keep SET_DOWN_CLEARANCE from everything else all the way down (a finger's
-    # middle link landed on a block delivered before, clutter5's third cycle)
+    # middle link may otherwise land on a block delivered earlier, as in clutter5's third cycle)
     descent = CollisionChecker(
         world, clearance=SET_DOWN_CLEARANCE, hand_q=hand_q, carried=block, qpos=state
     )

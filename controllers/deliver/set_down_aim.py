@@ -1,5 +1,5 @@
 """Aiming a set-down off the place point, within the judge's tolerance, to keep the descent's
-clearance (issue 23).
+clearance (section 5.2, "Deliver").
 
 A carried block is lowered with every link of the hand :data:`SET_DOWN_CLEARANCE` from the
 blocks around it (:func:`controllers.deliver.plan.plan_delivery`). Where the only set-downs the
@@ -20,8 +20,8 @@ from controllers.planning.cspace import CollisionChecker, Nearest
 from controllers.reach.arm_path import VERIFY_STEP, interpolate_path
 
 #: Largest distance (m) a set-down is aimed off the place point: a quarter of the judge's 2 cm
-#: tolerance, leaving the rest to how far the block moves as it is lowered and released (up to
-#: 17.5 mm measured over the lateral benches, docs/task_cycle.md).
+#: tolerance, leaving the rest to how far the block moves as it is lowered and released.
+#: Chosen by where released blocks land: docs/findings.md, "A set-down aimed off the place point".
 MAX_AIM_OFFSET = 0.005
 #: Distance (m) kept beyond the clearance when aiming off (the arm's links other than the hand
 #: do not move rigidly with the place point).

@@ -19,7 +19,7 @@ from controllers.grasp.objects import PAPER_OBJECTS, paper_object
 from controllers.grasp.polygon import MAX_COORDINATE, Polygon, centroid_of, parse_points
 from controllers.grasp.prism3d import prism_contacts
 from controllers.grasp.registry import COMPOSERS, make_composer
-from controllers.grasp.run_folder import check_finished_run
+from controllers.grasp.run_folder import REPRODUCE, check_finished_run
 from controllers.grasp.score import GraspScore, grasp_score
 from controllers.grasp.score3d import GraspScore3D, grasp_score_3d
 from controllers.grasp.trials import (
@@ -290,7 +290,7 @@ def build_parser() -> cli.ArgumentParser:
         "--models",
         type=Path,
         metavar="DIR",
-        help="folder of a finished `reproduce --out DIR` run whose models --controller "
+        help=f"folder of a finished `{REPRODUCE} DIR` run whose models --controller "
         "ql|pi|pi9|pi5 use (default: the models shipped in the package)",
     )
     t.add_argument(
@@ -298,7 +298,7 @@ def build_parser() -> cli.ArgumentParser:
         choices=("planar", "3d"),
         default="planar",
         help="planar: the paper's controllers with phi = 0 (its tables); 3d: contacts with "
-        "heights on the sides of a prism (docs/grasp3d_controllers.md)",
+        'heights on the sides of a prism (docs/grasp.md, "The 3-D model")',
     )
     t.add_argument(
         "--height",

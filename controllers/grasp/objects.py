@@ -31,10 +31,10 @@ def regular_polygon(sides: int, circumradius: float, name: str, phase: float = 0
 
 #: Shapes that Figure 6 shows without coordinates (and that our copy of the paper does not show at
 #: all: its figures are not in the text). Each is a *family* of seeded shapes made by the rules in
-#: :func:`family_member`, written down and committed before any controller was run on them, so no
-#: shape was chosen by its effect on a result. Member 0 is the object ``paper_object`` returns (the
-#: one in the scenes and in section 2's experiment); tables report the mean and the 5-95 % range
-#: over :data:`FAMILY_SIZE` members.
+#: :func:`family_member`. Member 0 is the object ``paper_object`` returns (the one in the scenes
+#: and in section 2's experiment); tables report the mean and the 5-95 % range over
+#: :data:`FAMILY_SIZE` members.
+#: Rules fixed in advance, not by their effect on a result: docs/findings.md, "Shape families".
 FAMILY_OBJECTS: tuple[str, ...] = (
     "irregular_triangle",
     "rectangle",
@@ -47,8 +47,7 @@ FAMILY_SIZE = 20
 #: Size of every family member (section 5.1: blocks with "maximum distance between edges of 5 cm
 #: (for the rectangle)"): the long side of a rectangle or trapezoid, the diameter of an irregular
 #: k-gon. Size changes no grasp result (the controllers use unit-moment copies, section 3.4), only
-#: the physical blocks; it was changed from "diameter 5 cm for all" after the first results, to keep
-#: the rectangle and trapezoid 5 cm long as the section says (and as the hand was built for).
+#: the physical blocks. How it was set: docs/findings.md, "Shape families".
 FAMILY_LENGTH = 5.0 * CM
 #: Rectangle: aspect ratio (long / short side) uniform in this range (a block that is clearly not
 #: a square, and not a plank).
@@ -157,9 +156,9 @@ def family_seed(name: str, member: int) -> int:
 
 
 def family_member(name: str, member: int) -> Polygon:
-    """Member ``member`` of the pre-registered family ``name`` (metres, longest edge at the
-    bottom; a 5 cm long side for a rectangle or trapezoid, a 5 cm diameter otherwise). The rules
-    of the shapes, fixed before any controller was run on them:
+    """Member ``member`` of the family ``name`` (metres, longest edge at the bottom; a 5 cm long
+    side for a rectangle or trapezoid, a 5 cm diameter otherwise). The rules of the shapes
+    (docs/findings.md, "Shape families"):
 
     - rectangle: sides 1 and 1/r, r uniform in :data:`RECTANGLE_ASPECT`;
     - trapezoid: isosceles, bottom 1, top uniform in :data:`TRAPEZOID_TOP`, height uniform in

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,11 +21,6 @@ from numpy.typing import ArrayLike, NDArray
 from controllers.grasp.errors import GraspError, ModelNotTrainedError
 from controllers.grasp.qlearning import EPS_FLOOR, LOG_SCALE, N_BINS, scaled_error
 from graspsim_base.files import write_text
-
-if TYPE_CHECKING:
-    import torch
-
-    from controllers.grasp.predictor_training import FSNetwork
 
 #: Network shape of section 4.3: two state inputs, three hidden units, one output.
 N_INPUTS, N_HIDDEN, N_OUTPUTS = 2, 3, 1
@@ -36,8 +30,8 @@ TRIALS_PER_OBJECT = 10
 #: Backpropagation settings (the paper gives none; our choice): plain SGD on the mean squared
 #: error, this learning rate and mini-batch, this many passes over the balanced set at the end
 #: of each epoch. The set is drawn from all states visited so far ("a fraction of all visited
-#: states", section 4.3). That reading was chosen after seeing that one epoch's states place the
-#: F/S boundary less consistently; ``reproduce`` reports PI (c) with both (docs/learning.md).
+#: states", section 4.3); ``reproduce`` reports PI (c) with that epoch's states only beside it.
+#: Chosen between the two readings: docs/findings.md, "F/S predictor's training set".
 LEARNING_RATE = 0.5
 BATCH_SIZE = 16
 PASSES_PER_EPOCH = 3
@@ -70,15 +64,6 @@ class FSPredictor:
     b1: NDArray[np.float32]  #: (3,)
     w2: NDArray[np.float32]  #: (1, 3)
     b2: NDArray[np.float32]  #: (1,)
-
-    @classmethod
-    def of(cls, net: FSNetwork) -> FSPredictor:
-        def grab(t: torch.Tensor) -> NDArray[np.float32]:
-            return t.detach().numpy().astype(np.float32).copy()
-
-        return cls(
-            grab(net.hidden.weight), grab(net.hidden.bias), grab(net.out.weight), grab(net.out.bias)
-        )
 
     def failure_expectation(self, eps_fc: ArrayLike, eps_mc: ArrayLike) -> NDArray[np.float32]:
         """Network output in (-1, 1) for each state; > 0 predicts failure."""

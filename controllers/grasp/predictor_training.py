@@ -57,6 +57,17 @@ class FSNetwork(torch.nn.Module):
         return bipolar_sigmoid(self.out(bipolar_sigmoid(self.hidden(x)))).squeeze(-1)
 
 
+def predictor_of(net: FSNetwork) -> FSPredictor:
+    """The trained weights of ``net`` as an :class:`FSPredictor` (numpy float32 copies)."""
+
+    def grab(t: torch.Tensor) -> NDArray[np.float32]:
+        return t.detach().numpy().astype(np.float32).copy()
+
+    return FSPredictor(
+        grab(net.hidden.weight), grab(net.hidden.bias), grab(net.out.weight), grab(net.out.bias)
+    )
+
+
 def visited_states(states: NDArray[np.float64], success: NDArray[np.bool_]):
     """All (eps_FC, eps_MC) rows of recorded trials (T, steps, 2) and each row's trial outcome."""
     valid = ~np.isnan(states[..., 0])
@@ -160,4 +171,4 @@ def train_predictor(
             losses[e] = fit_epoch(net, opt, x, y, rng)
         if progress is not None:
             progress(e, failures[e])
-    return PredictorTraining(FSPredictor.of(net), failures, losses, counts, objects.names)
+    return PredictorTraining(predictor_of(net), failures, losses, counts, objects.names)

@@ -19,8 +19,10 @@ from graspsim_base.files import sha256_of, write_text
 
 #: The results file; it carries the run's mark.
 RESULTS_FILE = "results.json"
+#: The command that trains the models (:mod:`experiments.paper.reproduce`), for the messages.
+REPRODUCE_COMMAND = "python -m experiments.paper reproduce"
 #: The command that (re)creates a folder, for the messages.
-REPRODUCE = "python -m controllers.grasp reproduce --out"
+REPRODUCE = f"{REPRODUCE_COMMAND} --out"
 
 
 #: What to do when a learned controller finds no model (the README's main command).

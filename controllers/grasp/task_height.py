@@ -26,9 +26,9 @@ from controllers.grasp.score3d import GraspScore3D
 #: Shifts tried across the band (evenly spaced, both ends included).
 SHIFTS = 9
 #: Common heights a hand tries in turn, best first by the worst-task S_G (1: only the task's
-#: best). Set before any result with it was seen: a top grasp's 2 cm band holds five heights
-#: 5 mm apart, and the task ranks the lowest first, so four reach into the upper band (the
-#: contacts' own spread, about 5 mm, leaves room for three on most grasps).
+#: best). A top grasp's 2 cm band holds five heights 5 mm apart, and the task ranks the lowest
+#: first, so four reach into the upper band (the contacts' own spread, about 5 mm, leaves room
+#: for three on most grasps). Set in advance: docs/findings.md, "Next-best common heights".
 HEIGHT_TRIES = 4
 #: The least difference (m) between two common heights tried (closer ones are nearly the same
 #: reach problem for the hand).

@@ -28,10 +28,10 @@ MAX_STEPS = 300
 CONVERGENCE_STEP = 5e-4
 #: Contacts per trial (four-fingered grasps).
 N_CONTACTS = 4
-#: Step size of the gradient descent on theta (rad per unit gradient). The paper does not state
-#: its gain. 0.25 is our choice (README, "Control gain"): in the MC phase a step shrinks the
-#: angular error by about GAIN * r_0^2, and r_0 = 1 / tan(pi / k) on a unit-moment regular k-gon,
-#: so 0.25 keeps the MC descent stable up to octagons (0.5 oscillates from heptagons on).
+#: Step size of the gradient descent on theta (rad per unit gradient; the paper gives none). In
+#: the MC phase a step shrinks the angular error by about GAIN * r_0^2, r_0 = 1 / tan(pi / k) on a
+#: unit-moment regular k-gon, so 0.25 keeps the MC descent stable up to octagons.
+#: Chosen for that stability: docs/findings.md, "Control gain".
 GAIN = 0.25
 
 

@@ -6,7 +6,7 @@ most 300 steps, then scored with S_G in 3-D (:mod:`controllers.grasp.score3d`, 6
 
 The coordinates of a side contact are theta (the planar contact coordinate, Appendix B) and
 its height z above the centre of mass, which is the paper's face coordinate r_phi on a side
-face (Eq. 9, docs/grasp3d_controllers.md). The controllers (section 3.4 in 3-D):
+face (Eq. 9; docs/grasp.md, "The 3-D model"). The controllers (section 3.4 in 3-D):
 - force closure on the Gaussian sphere, the sphere of normals: a contact sits at (theta, phi_0)
   with phi_0 its face normal's elevation, 0 on every side face whatever its height; so FC moves
   theta exactly as the planar FC (Eq. 5-7) and never a height;

@@ -8,7 +8,7 @@ forces, moments of the unit-moment object, the 1/n of Eq. 2) and signs are kept,
 every contact at phi = 0 on a side face and a planar task each function here returns the planar
 one's values. Gradients come as (T, n, 2) arrays, [..., 0] in theta (or r_theta) and [..., 1] in
 phi (or r_phi); minimizers per coordinate as (coordinate*, eps*) pairs of (T, n) arrays.
-docs/grasp3d_controllers.md derives the phi-direction results.
+docs/grasp.md ("The derivations, in short") derives the phi-direction results.
 """
 
 from __future__ import annotations

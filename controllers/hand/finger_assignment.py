@@ -1,14 +1,13 @@
 """The rule that gives the grasp controller's contacts to the fingers (section 5.2): the
 assignment of contacts to fingers by reach distance, and a three-contact grasp's idle finger.
 
-The grasp controller moves virtual contacts on a polygon and knows nothing of fingers; the
-fingers (ff, mf, rf, th) take them by the optimal assignment on squared reach distance
-(Hungarian method), or in the order of the assignments :func:`ranked_assignments` lists, which
-:func:`controllers.hand.reachability.reachable_contacts` tests in turn. In a three-contact grasp (a
-lateral thumb against two fingers,
-:func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`) one finger, ``idle``, takes
-no contact: its row holds its own fingertip, a zero normal and a NaN contact coordinate, and it
-stays where its posture holds it.
+The grasp controller moves virtual contacts on a polygon and knows nothing of fingers; the fingers
+(ff, mf, rf, th) take them by the optimal assignment on squared reach distance (Hungarian method),
+or in the order of the assignments :func:`ranked_assignments` lists, which
+:func:`controllers.hand.reachability.reachable_contacts` tests in turn. In a three-contact grasp
+(:func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`: a lateral thumb against two
+fingers) one finger, ``idle``, takes no contact: its row holds its own fingertip, a zero normal and
+a NaN contact coordinate, and it stays where its posture holds it.
 """
 
 from __future__ import annotations

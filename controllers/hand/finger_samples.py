@@ -181,15 +181,14 @@ class FingerSamples:
         """Joints (4,) of the sample of ``finger`` that takes the contact at world ``point`` with
         outward face ``normal`` (horizontal) best, the palm at world ``palm_position`` and
         ``palm_rotation`` (3, 3), and its score: the worst of the fingertip's distance from the
-        contact line (the vertical line ``criteria.squeeze`` inside the face at the contact,
-        between ``heights``), its pad angle, its sideways lean, how far off the palmar half of
-        the fingertip the contact lies and its links' penetration of the
-        block (``signed_distance`` of world points (..., 3), negative inside), each as a share of
-        its limit; (None, inf) when no sample's fingertip is on the line within the tolerance.
-        With ``prefer`` (a world height, m), of the samples that meet every criterion the one
-        whose score plus its contact's distance from that height over HEIGHT_SCALE is lowest:
-        sliding contacts of opposed fingers then take one height, and the squeeze does not tip
-        the block."""
+        contact line (the vertical line ``criteria.squeeze`` inside the face at the contact, between
+        ``heights``), its pad angle, its sideways lean, how far off the palmar half of the fingertip
+        the contact lies and its links' penetration of the block (``signed_distance`` of world
+        points (..., 3), negative inside), each as a share of its limit; (None, inf) when no
+        sample's fingertip is on the line within the tolerance. With ``prefer`` (a world height, m),
+        of the samples that meet every criterion the one whose score plus its contact's distance
+        from that height over HEIGHT_SCALE is lowest: sliding contacts of opposed fingers then take
+        one height, and the squeeze does not tip the block."""
         p0 = np.asarray(palm_position, dtype=float)
         R0 = np.asarray(palm_rotation, dtype=float)
         n = np.asarray(normal, dtype=float)

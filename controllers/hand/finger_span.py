@@ -1,14 +1,15 @@
 """A fingertip target no joint angles of its finger can reach, found without inverse kinematics.
 
-The reach test (:func:`controllers.hand.reachability.check_reach`) runs the hand IK with the arm
-held, so each finger's base is fixed. A finger's four hinge joints rotate its links about their
-anchors; the distance between consecutive anchors (and from the last anchor to the fingertip
-site) is the same in every posture, so the fingertip is never farther from the first joint's
-anchor (which its own rotation does not move) than the sum of those distances, the finger's
-span. A target farther than span + tolerance from that anchor leaves the fingertip more than the
-tolerance short in every posture: the IK's verdict is "unreachable" before it runs. Posture
-Control's palm-pose searches (:mod:`controllers.preshape.palm_search`) test hundreds of palm poses
-where the block is out of a finger's span; this test lets them skip the IK there.
+The reach test of section 5.2's reachability criterion
+(:func:`controllers.hand.reachability.check_reach`) runs the hand IK with the arm held, so each
+finger's base is fixed. A finger's four hinge joints rotate its links about their anchors; the
+distance between consecutive anchors (and from the last anchor to the fingertip site) is the same in
+every posture, so the fingertip is never farther from the first joint's anchor (which its own
+rotation does not move) than the sum of those distances, the finger's span. A target farther than
+span + tolerance from that anchor leaves the fingertip more than the tolerance short in every
+posture: the IK's verdict is "unreachable" before it runs. Posture Control's palm-pose searches
+(:mod:`controllers.preshape.palm_search`) test hundreds of palm poses where the block is out of a
+finger's span; this test lets them skip the IK there.
 """
 
 from __future__ import annotations

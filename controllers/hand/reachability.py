@@ -192,28 +192,26 @@ def check_reach(
     idle: int | None = None,
 ) -> HandReach:
     """Can the fingers (ff, mf, rf, th) take the contacts ``points`` (4, 3) with outward face
-    ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)?
-    The fingertips must reach ``squeeze`` (default :data:`SQUEEZE_REACH`) past each contact, pads
-    facing it.
-    ``check_spacing=False`` leaves out the pad-spacing test (the pad centres on their contacts,
+    ``normals`` (4, 3), the arm held at ``qpos``'s posture (default: the world's state now)? The
+    fingertips must reach ``squeeze`` (default :data:`SQUEEZE_REACH`) past each contact, pads facing
+    it. ``check_spacing=False`` leaves out the pad-spacing test (the pad centres on their contacts,
     at the heights taken, :data:`MIN_PAD_SPACING` apart; the task cycle applies it to the
-    controller's final contacts only). With ``slide`` each contact
-    may move up or down its face (a planar contact is a vertical line on the prism's face) between
-    :data:`BOTTOM_MARGIN` above the prism's bottom and :data:`TOP_MARGIN` below its top; the
-    heights taken are in the verdict's ``heights``. With ``samples`` and ``slide`` each finger's IK
-    starts from the sampled posture that takes its contact best (:meth:`FingerSamples.best`)
-    where one does, instead of from the hand's present posture: a global search the local IK
-    refines. (Without ``slide`` a contact's height range is a single height, which no sampled
-    fingertip meets exactly, so the samples are not searched.)
-    ``give_up``: the IK stops as soon as a fingertip cannot reach (``solve_posture``'s
-    ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and ``load`` are then
-    those of the shorter run (the verdict is the same). ``span_test``: without ``slide``, when a
-    fingertip target lies beyond its finger's span (:func:`_beyond_span`) neither the sampled
-    start nor the IK runs: the verdict (unreachable, as the IK's) is taken at the start posture,
-    its ``hand_q``, ``tip_error``, ``load`` and reason those of that posture, for a caller that
-    throws unreachable verdicts away. ``idle``: a three-contact grasp's finger that takes no
-    contact (its row of ``points`` and ``normals`` is not read): it stays in ``qpos``'s posture
-    and only its links' penetration of the block is judged."""
+    controller's final contacts only). With ``slide`` each contact may move up or down its face (a
+    planar contact is a vertical line on the prism's face) between :data:`BOTTOM_MARGIN` above the
+    prism's bottom and :data:`TOP_MARGIN` below its top; the heights taken are in the verdict's
+    ``heights``. With ``samples`` and ``slide`` each finger's IK starts from the sampled posture
+    that takes its contact best (:meth:`FingerSamples.best`) where one does, instead of from the
+    hand's present posture: a global search the local IK refines. (Without ``slide`` a contact's
+    height range is a single height, which no sampled fingertip meets exactly, so the samples are
+    not searched.) ``give_up``: the IK stops as soon as a fingertip cannot reach
+    (``solve_posture``'s ``give_up``); an unreachable verdict's ``hand_q``, ``tip_error`` and
+    ``load`` are then those of the shorter run (the verdict is the same). ``span_test``: without
+    ``slide``, when a fingertip target lies beyond its finger's span (:func:`_beyond_span`) neither
+    the sampled start nor the IK runs: the verdict (unreachable, as the IK's) is taken at the start
+    posture, its ``hand_q``, ``tip_error``, ``load`` and reason those of that posture, for a caller
+    that throws unreachable verdicts away. ``idle``: a three-contact grasp's finger that takes no
+    contact (its row of ``points`` and ``normals`` is not read): it stays in ``qpos``'s posture and
+    only its links' penetration of the block is judged."""
     model = world.model if model is None else model
     p = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)

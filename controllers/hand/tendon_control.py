@@ -1,4 +1,4 @@
-"""Joint control of the tendon-driven Utah/MIT hand (models/utah_mit_hand, issue 24) on a
+"""Joint control of the tendon-driven Utah/MIT hand of section 5 (models/utah_mit_hand) on a
 standalone model: the closed loop stepped for a given time, with a log of what it saw.
 
 The control law itself (desired joint angles -> PD torques -> 32 non-negative tendon tensions, and

@@ -1,13 +1,13 @@
 """When to give up an inverse-kinematics reach that cannot succeed.
 
-Posture Control's palm-pose searches (:mod:`controllers.preshape.palm_search`) and the reach test
-(:mod:`controllers.hand.reachability`) solve hundreds of fingertip IK problems per search, and most
-of them are out of reach: over the slow random scenes of ``python -m experiments.bench`` the reach
-test's hand IK converged in about 6 iterations when the contacts were reachable and spent all
-of its 250 when they were not, its error long flat at several millimetres. :class:`ReachProgress`
-watches the worst fingertip error of an IK's iterates and says when, at the rate it fell over
-the last :data:`STALL_WINDOW` iterations, it cannot come within the tolerance in the iterations
-left; the IK then stops with the same verdict (unreachable) early.
+Posture Control's palm-pose searches (section 5.2; :mod:`controllers.preshape.palm_search`) and the
+reach test (:mod:`controllers.hand.reachability`) solve hundreds of fingertip IK problems per
+search, and most of them are out of reach: over the slow random scenes of
+``python -m experiments.bench`` the reach test's hand IK converges in about 6 iterations when the
+contacts are reachable and spends all of its 250 when they are not, its error long flat at several
+millimetres. :class:`ReachProgress` watches the worst fingertip error of an IK's iterates and says
+when, at the rate it fell over the last :data:`STALL_WINDOW` iterations, it cannot come within the
+tolerance in the iterations left; the IK then stops with the same verdict (unreachable) early.
 """
 
 from __future__ import annotations

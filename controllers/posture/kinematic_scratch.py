@@ -1,14 +1,13 @@
 """Reusable MuJoCo state for the kinematic queries of posture control and the reach test.
 
-Posture Control's searches run thousands of small IK problems in an episode
-(:func:`controllers.posture.solver.solve_posture`,
-:func:`controllers.hand.reachability.check_reach`), each on the world's model or on a planning model
-of the same layout. Making a fresh ``MjData`` for each (and mink's :class:`~mink.Configuration`,
-which makes another, and its
-:class:`~mink.ConfigurationLimit`) cost about a millisecond per problem, a sixth of a slow
-episode's Posture Control. The state here is made once per model and reused: every query sets
-the whole ``qpos`` and recomputes the kinematics from it, so what it computes does not depend on
-what the state held before.
+Posture Control's searches (section 5.2) run thousands of small IK problems in an episode, each on
+the world's model or on a planning model of the same layout: the hand and arm IK
+(:func:`controllers.posture.solver.solve_posture`) and the reach test's
+(:func:`controllers.hand.reachability.check_reach`). Making a fresh ``MjData`` for each (and mink's
+:class:`~mink.Configuration`, which makes another, and its :class:`~mink.ConfigurationLimit`) costs
+about a millisecond per problem, a sixth of a slow episode's Posture Control. The state here is made
+once per model and reused: every query sets the whole ``qpos`` and recomputes the kinematics from
+it, so what it computes does not depend on what the state held before.
 """
 
 from __future__ import annotations

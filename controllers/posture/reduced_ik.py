@@ -1,11 +1,11 @@
 """mink's differential-IK step for site frame tasks, solved on the joints that move.
 
-:func:`mink.solve_ik` builds its quadratic program over every degree of freedom of the model
-(the arm's 5, the hand's 16 and 6 per free block) and holds the joints that must not move with
-equality constraints (:class:`mink.DofFreezingTask`); each :class:`mink.FrameTask` adds a 6-row
-Jacobian over all of them. Posture control (:mod:`controllers.posture.solver`) runs tens of
-thousands of such steps in an episode's searches, most of them with the arm frozen and only position
-targets on sites. :class:`ReducedStep` solves the same program with the frozen joints eliminated:
+:func:`mink.solve_ik` builds its quadratic program over every degree of freedom of the model (the
+arm's 5, the hand's 16 and 6 per free block) and holds the joints that must not move with equality
+constraints (:class:`mink.DofFreezingTask`); each :class:`mink.FrameTask` adds a 6-row Jacobian over
+all of them. Posture control (section 5.2, :mod:`controllers.posture.solver`) runs tens of thousands
+of such steps in an episode's searches, most of them with the arm frozen and only position targets
+on sites. :class:`ReducedStep` solves the same program with the frozen joints eliminated:
 
     min_dq  1/2 dq^T H dq + c^T dq   s.t.  G dq <= h,   dq_frozen = 0
 

@@ -52,13 +52,13 @@ POSTURE_WINDOW = 20
 JOINT_SETS: tuple[str, ...] = ("arm+hand", "hand")
 #: Collision avoidance (mink CollisionAvoidanceLimit) between the robot's geoms and the
 #: environment's (table, blocks): the distance kept (m), the distance at which the limit engages
-#: (m) and its gain. Without it, moving the arm to hold the fingertips swept the palm through the
-#: block it was about to grasp.
+#: (m) and its gain. Without it, moving the arm to hold the fingertips sweeps the palm through
+#: the block it is about to grasp.
 AVOID_DISTANCE = 0.003
 AVOID_DETECTION = 0.03
 AVOID_GAIN = 0.85
 #: The palm keeps this much further (m) from the blocks: under the hand's weight the arm's servos
-#: sag by a few millimetres, and a palm planned 3 mm above a block's top pressed on it.
+#: sag by a few millimetres, and a palm planned 3 mm above a block's top presses on it.
 PALM_DISTANCE = 0.003
 #: How far (m) the iterates may come inside an avoided distance before a step is refused.
 CLEARANCE_SLACK = 0.001

@@ -1,20 +1,20 @@
 """A lateral grasp the hand can take, chosen by S_G among its sampled finger postures (section
-5.2: Fine Reach and Wrench Closure after a lateral approach; docs/task_cycle.md, "Lateral
-contacts from the hand's own reach").
+5.2: Fine Reach and Wrench Closure after a lateral approach; docs/findings.md, "Sampled
+contacts first").
 
-A lateral hand faces the block along the arm's radius with its finger row horizontal; which
-points of the block's outline its fingers can press with their pads depends on the block's
-width and turn, and a fixed pinch pre-shape's fingertips, projected across the approach axis,
-land on points the hand cannot take on most blocks that are not the rectangle it was found on.
-Here, at a palm pose beside the block, every sampled posture of each finger
+A lateral hand faces the block along the arm's radius with its finger row horizontal; which points
+of the block's outline its fingers can press with their pads depends on the block's width and turn,
+and a fixed pinch pre-shape's fingertips, projected across the approach axis, land on points the
+hand cannot take on most blocks that are not the rectangle it was found on. Here, at a palm pose
+beside the block, every sampled posture of each finger
 (:class:`controllers.hand.finger_samples.FingerSamples`) whose fingertip lies ``squeeze`` inside a
 side face of the perceived prism and that meets the reachability criteria of
 :mod:`controllers.hand.reachability` (pad facing the face, not sideways, the contact on the palmar
 half, no link in the block) gives that finger a candidate contact. Of the combinations of one
-candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart where they
-take their contacts, heights included), the one with the lowest S_G (Eq. 13, planar,
-on the unit-moment polygon, section 3.4) is the grasp; the reach test then confirms it with the
-hand's own inverse kinematics.
+candidate per finger whose pads fit (their centres :data:`CONTACT_SEPARATION` apart where they take
+their contacts, heights included), the one with the lowest S_G (Eq. 13, planar, on the unit-moment
+polygon, section 3.4) is the grasp; the reach test then confirms it with the hand's own inverse
+kinematics.
 """
 
 from __future__ import annotations
@@ -58,8 +58,8 @@ class LateralSampling:
     #: Candidate contacts stay this far (m) from a face's vertical edges.
     edge_inset: float = 0.004
     #: Every finger link of a candidate stays this far (m) above the table: a lateral hand's
-    #: thumb reaches down towards it (single_irregular_pentagon: the thumb's links met the
-    #: table and its touch guard stopped it in Fine Reach).
+    #: thumb reaches down towards it (on single_irregular_pentagon its links otherwise meet the
+    #: table and its touch guard stops it in Fine Reach).
     table_clearance: float = 0.01
     #: Candidates of one finger on one face closer than this (m) along it count as one (the
     #: best-scored sample of the bin is kept).
@@ -214,10 +214,10 @@ def sampled_lateral_grasp(
     params: LateralSampling = DEFAULT_SAMPLING,
     cache: CandidateCache | None = None,
 ) -> SampledGrasp | None:
-    """The lowest-S_G grasp of one sampled candidate contact per finger
-    (:func:`finger_candidates`) with the arm at ``qpos``'s posture (``model``, the planning
-    model), the pads apart; None when a finger has no candidate or no combination fits.
-    ``cache``: the candidates of earlier searches at the same palm pose (:data:`CandidateCache`)."""
+    """The lowest-S_G grasp of one sampled candidate contact per finger (:func:`finger_candidates`)
+    with the arm at ``qpos``'s posture (``model``, the planning model), the pads apart; None when a
+    finger has no candidate or no combination fits. ``cache``: the candidates of earlier searches at
+    the same palm pose (:data:`CandidateCache`)."""
     palm = _palm(model, qpos)
     per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params, cache)
     best = _lowest_s_g(per, polygon, params)
@@ -242,13 +242,13 @@ def three_contact_lateral_grasp(
 ) -> SampledGrasp | None:
     """The lowest-S_G grasp of three contacts, the thumb's and two fingers' (the paper's grasp
     controller takes any number of contacts, section 3 and Appendix B), at the palm pose of
-    ``qpos``: as :func:`sampled_lateral_grasp` over the three fingers, the fourth (``idle``,
-    one of ff, mf, rf) held in a sampled posture whose every link stays
-    :data:`IDLE_CLEARANCE` outside the perceived block, above the table and clear of the other
-    fingers' links. A thumb against three fingers on parallel faces scores S_G 0.5 under Eq.
-    13's unit normal forces (it must push as hard as the three together), a thumb against two
-    0.33. ``theta`` and ``points`` are the three pressing fingers', in finger order. None when
-    no idle finger has such a posture or no combination fits."""
+    ``qpos``: as :func:`sampled_lateral_grasp` over the three fingers, the fourth (``idle``, one of
+    ff, mf, rf) held in a sampled posture whose every link stays :data:`IDLE_CLEARANCE` outside the
+    perceived block, above the table and clear of the other fingers' links. A thumb against three
+    fingers on parallel faces scores S_G 0.5 under Eq. 13's unit normal forces (it must push as hard
+    as the three together), a thumb against two 0.33. ``theta`` and ``points`` are the three
+    pressing fingers', in finger order. None when no idle finger has such a posture or no
+    combination fits."""
     palm = _palm(model, qpos)
     per = _all_candidates(samples, palm, prism, polygon, pose_xy, squeeze, params, cache)
     thumb = len(robot.FINGERS) - 1

@@ -60,7 +60,8 @@ class MotionParams:
     #: planning a harmonic path, when every posture on that line (checked every
     #: ``arm_path.VERIFY_STEP``) keeps this far (m) from the perceived world, the retracted hand
     #: included: more than the harmonic path's ``reposition_clearance``, for the servos' lag
-    #: off the line (docs/bench.md, "Fifth pass").
+    #: off the line.
+    #: Chosen by its effect on Posture Control's time: docs/findings.md, "Straight arm moves".
     direct_clearance: float = 0.01
     #: Times (s) of the hand's moves.
     retract_time: float = 0.4
@@ -80,8 +81,8 @@ class MotionParams:
     approach_clearance: float = 0.003
     approach_step: float = 0.01
     #: A lateral reposition backs the new posture out as far as its straight approach is clear
-    #: (:func:`clear_back`); False: as far as the hand backed out of where it was (before issue
-    #: 23's twenty-fifth session, when the move between them swept fingers through the block).
+    #: (:func:`clear_back`); False: as far as the hand backs out of where it is.
+    #: Chosen by its effect on the lateral bench: docs/findings.md, "Backing in as far as clear".
     backin_as_clear: bool = True
 
 
@@ -179,7 +180,7 @@ def clear_backoff(site: BlockSite) -> float:
     approach axis from where the arm is, the hand held as it is, without a link touching the
     perceived world (:func:`clear_back` of the arm's posture): a lateral hand backing out
     towards the arm's base may otherwise push a neighbour standing between the base and the
-    block (issue 23: ``--scene random --seed 1004 --blocks 2`` moved one 149 mm)."""
+    block (docs/findings.md, "Backing out as far as clear")."""
     return clear_back(site, site.world.arm_qpos(), site.world.hand_qpos())
 
 
@@ -190,9 +191,8 @@ def clear_back(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
     touches it at ``arm_q`` already (a finger on the block). :func:`reposition` backs a lateral
     hand out of where it is this far, and the new posture before its straight approach: a hand
     that backs out only a little from where it is must not move to the new posture backed out
-    as little, or the joint-space move there sweeps the fingers through the block (issue 23:
-    ``--scene random --seed 63 --blocks 3 --approach lateral`` knocked the hexagon off the
-    table)."""
+    as little, or the joint-space move there sweeps the fingers through the block
+    (docs/findings.md, "Backing in as far as clear")."""
     p = site.params
     checker = CollisionChecker(
         site.world, model=site.planning, hand_q=hand_q, clearance=p.reposition_clearance
@@ -248,13 +248,12 @@ def reposition(site: BlockSite, arm_q: NDArray[np.float64], hand_q: NDArray[np.f
 
 def move_backed_out(site: BlockSite, arm_q: NDArray[np.float64]) -> str:
     """Move the arm, the hand keeping its shape, from where it is to the backed-out posture
-    ``arm_q``, and say how: ``"straight"``, in a straight joint-space line, when every posture
-    on it keeps ``direct_clearance`` from the perceived world; else ``"harmonic"``, on a
-    collision-free harmonic path (:func:`controllers.reach.arm_path.plan_arm_path`; where turning
-    the wrist roll first would sweep the hand through a neighbour, the roll turns at the goal,
-    the empty hand tilting nothing, or above the start,
-    :func:`controllers.reach.arm_path.roll_turned_above`); else ``"unplanned"`` (e.g. the backed-out
-    hand already grazes a neighbour): straight there anyway."""
+    ``arm_q``, and say how: ``"straight"``, in a straight joint-space line, when every posture on it
+    keeps ``direct_clearance`` from the perceived world; else ``"harmonic"``, on a collision-free
+    harmonic path (:func:`controllers.reach.arm_path.plan_arm_path`; where turning the wrist roll
+    first would sweep the hand through a neighbour, the roll turns at the goal, the empty hand
+    tilting nothing, or above the start, :func:`controllers.reach.arm_path.roll_turned_above`); else
+    ``"unplanned"`` (e.g. the backed-out hand already grazes a neighbour): straight there anyway."""
     world, p = site.world, site.params
     start = world.arm_qpos()
     direct = np.stack([start, arm_q])

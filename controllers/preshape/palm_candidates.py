@@ -62,10 +62,9 @@ class PalmPoseParams:
     lateral_rolls: tuple[float, ...] = (0.0, LATERAL_ROLL_STEP, -LATERAL_ROLL_STEP)
     #: Wrist rolls (rad) a lateral pre-shape's sampled contacts are searched at where none is
     #: taken at ``lateral_rolls``: the hand upside down (180, 170 deg: the thumb on the other
-    #: side of the block) and its finger row vertical (+-90 deg). Chosen from the best sampled
-    #: S_G at ten rolls on the 29 of random lateral scenes 0-99 that had no pre-shape: 6 had a
-    #: grasp of S_G <= 0.4 only at these rolls (docs/task_cycle.md, "Eq. 13's gate bounds the
-    #: lateral grasp"). Each is searched with its neighbours +-LATERAL_ROLL_STEP afterwards.
+    #: side of the block) and its finger row vertical (+-90 deg). Each is searched with its
+    #: neighbours +-LATERAL_ROLL_STEP afterwards.
+    #: Chosen by the best sampled S_G at ten rolls: docs/findings.md, "More wrist rolls".
     lateral_more_rolls: tuple[float, ...] = tuple(np.deg2rad([180.0, 170.0, 90.0, -90.0]))
     lateral_shifts: tuple[float, ...] = (0.0, -0.008, 0.008)
     #: The palm poses a lateral pre-shape searches for contacts among the sampled finger
@@ -84,12 +83,8 @@ class PalmPoseParams:
     #: curl from the palm round the block's sides, so their pads face across and back towards
     #: the palm: a face turned away from the palm (the block narrowing beyond its widest part) is
     #: taken with the pad, a face turned towards the palm needs a pad facing forward, which a
-    #: curled finger has not. Chosen from the pad angles the reach test measured at the
-    #: pre-shape's palm poses, seed 0 (not by the episodes' outcome): faces turned 19 deg away
-    #: (single_pentagon's far side faces) were taken with pads 30-54 deg off; faces turned 30-31
-    #: deg towards the palm (single_triangle's, single_hexagon's near faces) 60-90 deg off, and
-    #: 54 deg towards it (single_pentagon's near faces) 76-132 deg off (the limit is 65 deg,
-    #: ``hand_reach.MAX_PAD_ANGLE``).
+    #: curled finger has not.
+    #: Chosen by the reach test's pad angles: docs/findings.md, "Faces a lateral pad takes".
     lateral_face_away: float = float(np.deg2rad(45.0))
     lateral_face_palmward: float = float(np.deg2rad(15.0))
     #: Assignments of contacts to fingers a lateral Posture Control search checks per palm pose
@@ -141,10 +136,10 @@ class PoseSetting:
 
 @dataclass(frozen=True, eq=False)
 class PalmPose:
-    """A palm pose a Posture Control search tries (:func:`controllers.preshape.palm_search.search_poses`):
-    the configuration (qpos), its group (poses are tried group by group, in order: a lateral
-    pose's palm-block distance in m, a top pose's 0 where the palm is and 1 shifted) and a
-    label."""
+    """A palm pose a Posture Control search tries
+    (:func:`controllers.preshape.palm_search.search_poses`): the configuration (qpos), its group
+    (poses are tried group by group, in order: a lateral pose's palm-block distance in m, a top
+    pose's 0 where the palm is and 1 shifted) and a label."""
 
     qpos: NDArray[np.float64]
     group: float
@@ -282,13 +277,12 @@ def palm_plate_depth(
     half_face: tuple[float, float],
 ) -> float:
     """How far (m) along ``frame``'s approach axis (its z column) from ``origin`` the palm's face
-    (``half_face`` about the axis, :func:`palm_half_face`; hand x and y as ``frame`` has them)
-    first meets the perceived
-    block (the convex hull of its footprint, from its top face down): the least
-    ``z . (p - origin)`` over the block's points ``p`` in the face's shadow along the axis, a
-    linear programme; ``inf`` when the shadow misses the block. A palm facing a vertical side
-    level meets the nearest point of the side; a palm pitched down meets the block's top edge
-    with its upper edge, further out than its centre's line does."""
+    (``half_face`` about the axis, :func:`palm_half_face`; hand x and y as ``frame`` has them) first
+    meets the perceived block (the convex hull of its footprint, from its top face down): the least
+    ``z . (p - origin)`` over the block's points ``p`` in the face's shadow along the axis, a linear
+    programme; ``inf`` when the shadow misses the block. A palm facing a vertical side level meets
+    the nearest point of the side; a palm pitched down meets the block's top edge with its upper
+    edge, further out than its centre's line does."""
     hull = ConvexHull(target.footprint())
     x, y, z = frame[:, 0], frame[:, 1], frame[:, 2]
     a, b = half_face

@@ -8,7 +8,7 @@ are planned and the one whose path exists and is shorter (in joint space) is cho
 holds the target, the goal poses of each approach, their IK goals and :func:`plan_coarse_reach`.
 The path planner and its execution live in :mod:`controllers.reach.arm_path` (the same planner moves
 the arm, hand and object to a delivery posture, :mod:`controllers.deliver.plan`); their public names
-are re-exported here so that ``from controllers.reach.coarse import plan_arm_path`` keeps working.
+are re-exported here so that ``from controllers.reach.coarse import plan_arm_path`` works too.
 """
 
 from __future__ import annotations
@@ -51,13 +51,12 @@ LATERAL_DEPTH = 0.10
 #: collision-free posture: (palm depth below the top, gap between the pre-shaped fingertips and
 #: the block, m; approach axis pitched down from the horizontal, rad). For a block nearer the
 #: arm's base than about 0.57 m the 5-joint arm reaches the nominal lateral goal only with its
-#: wrist pitched so far that the palm and fingers hit its own forearm (26 of the 35 "no
-#: collision-free goal posture" failures of the 100 random lateral scenes, docs/task_cycle.md);
-#: a palm closer to the block or higher unfolds the wrist. The depths keep the middle finger's
-#: knuckle (5.8 cm above the palm centre) below the top. Then the axis pitched down by
-#: LATERAL_TILTS: 15 deg unfolds the wrist of every block 0.44-0.50 m from the base (13 of the
-#: 22 scenes of the 100 random lateral ones of record with no horizontal goal), 30-45 deg lifts
-#: the hand over a neighbour on the radial line (8 of the other 9; docs/task_cycle.md).
+#: wrist pitched so far that the palm and fingers hit its own forearm; a palm closer to the block
+#: or higher unfolds the wrist. The depths keep the middle finger's knuckle (5.8 cm above the
+#: palm centre) below the top. Then the axis pitched down by LATERAL_TILTS: 15 deg unfolds the
+#: wrist for a block 0.44-0.50 m from the base, 30-45 deg lifts the hand over a neighbour on the
+#: radial line.
+#: Chosen by the lateral goals the bench lacked: docs/findings.md, "Lateral goal fallbacks".
 LATERAL_TILTS: tuple[float, ...] = (np.deg2rad(15.0), np.deg2rad(30.0), np.deg2rad(45.0))
 #: A lateral goal pitched more than this (rad) is one of LATERAL_TILTS': with ``auto`` it is
 #: taken only where the top approach has no path.
@@ -385,8 +384,7 @@ def plan_coarse_reach(
     approach axis stays in its waist's vertical plane, so the radial line's two ends are the
     only directions a lateral palm can face; a neighbour within about 18 cm of the block on
     the base's side leaves no near goal, and the far goals found are pitched 30-45 deg down,
-    the forearm passing over the block (docs/task_cycle.md, "A far-side palm, the next pitch,
-    and grasps that hold before the bands")."""
+    the forearm passing over the block (docs/findings.md, "A lateral palm from the far side")."""
     unknown = [a for a in approaches if a not in APPROACHES]
     if unknown or not approaches:
         raise ReachError(

@@ -1,13 +1,12 @@
 """Fine reach (section 5.2): "another harmonic motion controller that postures the hand so as to
 minimize the distance between the fingertips and points projected over the object surface".
 
-Each fingertip gets a harmonic function (Connolly & Grupen) on a 3-D grid around the target
-block: the block, grown by :data:`OBSTACLE_MARGIN`, the other blocks and the table are obstacles;
-the goal is the free space just outside the fingertip's surface point. Every control period the
-fingertip's next position is a short step along the gradient (straight at the target once within
-:data:`FINAL_APPROACH` of it); mink differential IK
-(:func:`controllers.posture.solver.solve_posture`, arm and fingers) turns the four next positions
-into servo targets, and the simulation runs.
+Each fingertip gets a harmonic function (Connolly & Grupen) on a 3-D grid around the target block:
+the block, grown by :data:`OBSTACLE_MARGIN`, the other blocks and the table are obstacles; the goal
+is the free space just outside the fingertip's surface point. Every control period the fingertip's
+next position is a short step along the gradient (straight at the target once within
+:data:`FINAL_APPROACH` of it); the four next positions become servo targets by mink's differential
+IK (:func:`controllers.posture.solver.solve_posture`, arm and fingers), and the simulation runs.
 """
 
 from __future__ import annotations
@@ -32,10 +31,8 @@ from hand_sim.world import TOUCH_TENDONS, World
 GRASP_DEPTH = 0.04
 MIN_CONTACT_HEIGHT = 0.02
 #: Depths (m below the block's top) a top grasp's contacts may take in the 3-D grasp model: from
-#: GRASP_DEPTH to 6 cm. The 6 cm was chosen by looking at physical results: the planar
-#: controllers' contacts placed at one depth (python -m experiments.physics --objects
-#: square,pentagon,hexagon,rectangle --grasps 12 --depth D) held 29 of 101 tested at 4 cm, 97 of
-#: 100 at 6 cm and 73 of 97 at 7 cm (docs/grasp3d_physics.md).
+#: GRASP_DEPTH to 6 cm.
+#: Chosen by its effect on the physical study: docs/findings.md, "Depth of a top grasp's contacts".
 TOP_GRASP_DEPTHS = (GRASP_DEPTH, 0.06)
 #: Cell size (m) of the fingertip grids and their extent around the block (m).
 FIELD_CELL = 0.005
@@ -288,14 +285,13 @@ def fine_reach(
 ) -> FineReachResult:
     """Bring the fingertips to ``targets`` on block ``target_name`` (default: the fingertips'
     current positions projected on its side faces, :func:`project_to_surface`), following each
-    fingertip's harmonic field, in the simulation. ``seen`` is the block as
-    perceived (e.g. :meth:`ReachTarget.from_object_model`); default: where the physics has it.
+    fingertip's harmonic field, in the simulation. ``seen`` is the block as perceived (e.g.
+    :meth:`ReachTarget.from_object_model`); default: where the physics has it.
 
     Each fingertip is steered ``standoff`` m outside its surface point. Touch guard: a fingertip
-    whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`; the tendon
-    hand: whose tensions need a pad force above it, :func:`touch_guard`)
-    stops where it is, so a finger arriving early does not push the block before the others
-    arrive.
+    whose pad presses on anything but the hand itself (above :data:`TOUCH_GUARD`; the tendon hand:
+    whose tensions need a pad force above it, :func:`touch_guard`) stops where it is, so a finger
+    arriving early does not push the block before the others arrive.
 
     ``model`` (e.g. the planning model holding the perceived block,
     :mod:`controllers.planning.belief`) turns on collision avoidance in the IK: the hand's links
@@ -368,14 +364,13 @@ def reach_along_normals(
 ) -> FineReachResult:
     """Fine reach of a hand whose palm already faces its contacts and whose posture ``hand_to``
     (16,) puts each fingertip ``standoff`` outside its contact (``targets``) on block
-    ``target_name``: the hand's servo
-    targets move on the straight joint-space line from where they are to ``hand_to``, the arm
-    held. When the hand starts backed off from ``hand_to``'s contact posture along the fingers'
-    squeeze directions (:func:`controllers.hand.grip.backed_off_hand`), that line brings each
-    fingertip in along its contact's normal, where the approach was checked clear: unlike the
-    harmonic fields' IK (:func:`fine_reach`), no link sweeps round the block or into the table.
-    The touch guard (:func:`touch_guard`) holds a finger that touches early where it is. The
-    result's ``tip_error`` is each fingertip's distance from its goal along the contact's
+    ``target_name``: the hand's servo targets move on the straight joint-space line from where they
+    are to ``hand_to``, the arm held. When the hand starts backed off from ``hand_to``'s contact
+    posture along the fingers' squeeze directions (:func:`controllers.hand.grip.backed_off_hand`),
+    that line brings each fingertip in along its contact's normal, where the approach was checked
+    clear: unlike the harmonic fields' IK (:func:`fine_reach`), no link sweeps round the block or
+    into the table. The touch guard (:func:`touch_guard`) holds a finger that touches early where it
+    is. The result's ``tip_error`` is each fingertip's distance from its goal along the contact's
     normal."""
     if tolerance <= 0:
         raise ReachError(f"tolerance must be > 0 m, got {tolerance}")

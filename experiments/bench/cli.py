@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from controllers.grasp.run_folder import REPRODUCE
 from experiments.bench.jobs import (
     RESULTS_FILE,
     BenchError,
@@ -83,10 +84,10 @@ RESUME_KEYS = (
     "lateral_gate",
     "lateral_gate_rule",
 )
-#: Settings of a bench folder written before they existed (what those benches ran: the planar
-#: grasp model, one cycle, and a place point the hand could not set down at moved to a free slot
-#: unreported, so that their results cannot be resumed under the rule that judges at the point
-#: asked for).
+#: What a bench folder whose settings lack an entry ran (older folders: the planar grasp model,
+#: one cycle, the servo hand, and a place point the hand could not set down at moved to a free
+#: slot unreported, so that their results are not resumed under the rule that judges at the
+#: point asked for).
 SETTING_DEFAULTS = {
     "grasp_model": "planar",
     "cycles": "1",
@@ -211,8 +212,7 @@ def parser() -> ArgumentParser:
     ap.add_argument(
         "--models",
         default=None,
-        help="trained models folder from `python -m controllers.grasp reproduce --out DIR` "
-        "(default: the shipped ones)",
+        help=f"trained models folder from `{REPRODUCE} DIR` (default: the shipped ones)",
     )
     return ap
 

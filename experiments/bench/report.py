@@ -158,7 +158,7 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
     if settings.get("blocks"):
         parts.append(f"--blocks {settings['blocks']}")
     parts += [f"--controller {settings['controller']}", f"--approach {settings['approach']}"]
-    # always written: the default grasp model changed (planar before, 3-D since)
+    # always written, so that the command runs the same model whatever the default
     parts.append(f"--model {settings.get('grasp_model', 'planar')}")
     if settings.get("cycles", "1") != "1":
         parts.append(f"--cycles {settings['cycles']}")
@@ -168,10 +168,10 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--models {settings['models']}")
     if settings.get("lateral_gate", 0.4) != 0.4:
         parts.append(f"--lateral-gate {settings['lateral_gate']}")
-    rule = settings.get("lateral_gate_rule", "paper")  # bench folders from before ran "paper"
+    rule = settings.get("lateral_gate_rule", "paper")  # a folder without the setting ran "paper"
     if rule != "opposition":
         parts.append(f"--lateral-gate-rule {rule}")
-    # always written: the default hand changed (servo before, tendon since)
+    # always written, so that the command runs the same hand whatever the default
     parts.append(f"--hand {settings.get('hand', 'servo')}")
     return " ".join(parts)
 

@@ -34,8 +34,8 @@ DELIVERED, ELSEWHERE, FAILED = "delivered", "delivered elsewhere", "failed"
 
 def outcome(line: dict[str, Any]) -> str:
     """DELIVERED, ELSEWHERE (a success only because a block went to another point than the one
-    asked for) or FAILED, of one results line (lines from before ``delivered_elsewhere``
-    existed count as delivered where asked: their judge knew no other point)."""
+    asked for) or FAILED, of one results line (a line without ``delivered_elsewhere`` counts as
+    delivered where asked: its judge knew no other point)."""
     if not line.get("success"):
         return FAILED
     moved = any(c.get("delivered_elsewhere") for c in line.get("cycles") or [])
@@ -111,8 +111,8 @@ class FailureRow:
     #: of them, episodes whose failed cycle left its block knocked over (judged from the
     #: simulation, ``block_at_failure`` of the summary)
     knocked_over: int = 0
-    #: of them, episodes whose summary has that judgement at all (results written before
-    #: the judge existed have none: their count is unknown, not zero)
+    #: of them, episodes whose summary has that judgement at all (older results have none:
+    #: their count is unknown, not zero)
     judged: int = 0
 
 

@@ -62,112 +62,110 @@ def configurations(
     return out
 
 
+def _line_figure(path: Path, series: list[fig.Series], title: str, ylabel: str, **kw) -> None:
+    """One line plot (:func:`experiments.paper.figures.line_plot`) as a PNG."""
+    f = fig.new_figure()
+    fig.line_plot(f.add_subplot(), series, title, kw.pop("xlabel", "epoch"), ylabel, **kw)
+    fig.save_png(f, path)
+
+
 def write_figures(out: Path, results: dict, seed: int, cfg, opt: OptimalPath) -> None:
     """Every figure of the paper from the tasks' ``results`` of ``seed``."""
     sm = fig.moving_average
     ql = results[("qlearning", seed)]
     atomic = results[("atomic", seed)]
     curves = results[("curves", seed)]
-    fig.save_png(
+    _line_figure(
         out / "fig01_atomic_learning.png",
-        fig.line_plot(
-            [
-                fig.Series(
-                    "atomic Q-learning (irregular triangle)",
-                    np.arange(1, cfg.atomic_epochs + 1),
-                    100 * sm(atomic["curve"]),
-                )
-            ],
-            "Figure 1: failure rate during training (10-epoch smoothing)",
-            "epoch",
-            "failure rate (%)",
-            ylim=(0, 100 * max(0.05, float(sm(atomic["curve"]).max()) * 1.1)),
-        ),
+        [
+            fig.Series(
+                "atomic Q-learning (irregular triangle)",
+                np.arange(1, cfg.atomic_epochs + 1),
+                100 * sm(atomic["curve"]),
+            )
+        ],
+        "Figure 1: failure rate during training (10-epoch smoothing)",
+        "failure rate (%)",
+        ylim=(0, 100 * max(0.05, float(sm(atomic["curve"]).max()) * 1.1)),
     )
     ep = np.arange(1, cfg.ql_epochs + 1)
-    fig.save_png(
+    _line_figure(
         out / "fig07_ql_learning.png",
-        fig.line_plot(
-            [fig.Series("Q-learning composition, 9 objects", ep, 100 * sm(ql["curve"]))],
-            "Figure 7: failure rate during training (10-epoch smoothing)",
-            "epoch",
-            "failure rate (%)",
-            hlines=[(PAPER_TABLE1_AVERAGE["ql"], "paper QL test 8.33 %")],
-        ),
+        [fig.Series("Q-learning composition, 9 objects", ep, 100 * sm(ql["curve"]))],
+        "Figure 7: failure rate during training (10-epoch smoothing)",
+        "failure rate (%)",
+        hlines=[(PAPER_TABLE1_AVERAGE["ql"], "paper QL test 8.33 %")],
     )
-    fig.save_png(
+    _line_figure(
         out / "fig09_failure_curves.png",
-        fig.line_plot(
-            [
-                fig.Series(
-                    "(a) PI (predictor used after epoch 10)",
-                    np.arange(1, len(curves["pi"]) + 1),
-                    100 * sm(curves["pi"]),
-                ),
-                fig.Series(
-                    "(b) knowledge-based",
-                    np.arange(1, len(curves["kb"]) + 1),
-                    100 * sm(curves["kb"]),
-                ),
-                fig.Series("(c) Q-learning", ep, 100 * sm(ql["curve"])),
-            ],
-            "Figure 9: failure rate per epoch (10-epoch smoothing)",
-            "epoch",
-            "failure rate (%)",
-        ),
+        [
+            fig.Series(
+                "(a) PI (predictor used after epoch 10)",
+                np.arange(1, len(curves["pi"]) + 1),
+                100 * sm(curves["pi"]),
+            ),
+            fig.Series(
+                "(b) knowledge-based",
+                np.arange(1, len(curves["kb"]) + 1),
+                100 * sm(curves["kb"]),
+            ),
+            fig.Series("(c) Q-learning", ep, 100 * sm(ql["curve"])),
+        ],
+        "Figure 9: failure rate per epoch (10-epoch smoothing)",
+        "failure rate (%)",
     )
     _figure10_11(out, results[("tables", seed)]["predictor"], curves)
     _figure12(out, {**results[("tables", seed)]["fig12"], **ql["fig12"]})
     _figure2(out, atomic["tests"])
-    fig.save_png(
+    _line_figure(
         out / "fig17_theta.png",
-        fig.line_plot(
-            [fig.Series("theta(t)", opt.t, opt.theta)],
-            f"Figure 17: theta(t), theta(T) = {opt.theta_final:.4f} rad (paper 3.6052)",
-            "t",
-            "theta (rad)",
-            hlines=[(PAPER_THETA_T, "3.6052")],
-        ),
+        [fig.Series("theta(t)", opt.t, opt.theta)],
+        f"Figure 17: theta(t), theta(T) = {opt.theta_final:.4f} rad (paper 3.6052)",
+        "theta (rad)",
+        xlabel="t",
+        hlines=[(PAPER_THETA_T, "3.6052")],
     )
-    plot = fig.line_plot(
+    f = fig.new_figure((fig.PLOT_SIZE[0] + 2.4, fig.PLOT_SIZE[1]))
+    plot, inset = f.subplots(1, 2, width_ratios=(fig.PLOT_SIZE[0], 2.4))
+    fig.line_plot(
+        plot,
         [fig.Series("alpha (1: FC, 0: MC)", opt.t, opt.alpha, step=True)],
         "Figure 18: time-optimal activation",
         "t",
         "alpha",
         ylim=(-0.1, 1.1),
     )
-    inset = fig.square_activation_inset(opt.theta, opt.alpha, BETA)
-    fig.save_png(out / "fig18_activation.png", fig.hstack([plot, inset]))
+    fig.square_activation_inset(inset, opt.theta, opt.alpha, BETA)
+    fig.save_png(f, out / "fig18_activation.png")
 
 
 def _figure2(out: Path, tests) -> None:
-    """Figure 2: the most frequent atomic-action configurations, as trained and rotated."""
+    """Figure 2: the most frequent atomic-action configurations (at most four per row), as
+    trained, rotated and satisfactory, rotated and unsatisfactory."""
     tri = paper_object("irregular_triangle")
     trained, rotated = tests
     unit_t = tri.unit_moment()
     unit_r = tri.rotated(np.deg2rad(TEST_ROTATION_DEG)).unit_moment()
     rows = [(trained, unit_t, trained.most_frequent), (rotated, unit_r, rotated.most_frequent),
             (rotated, unit_r, rotated.most_frequent_failures)]  # fmt: skip
-    panels = []
-    for t, unit, configs in rows:
-        row = [
+    side = fig.PANEL_SIZE
+    f = fig.new_figure(
+        (4 * side, 3 * side + 0.4),
+        "Figure 2: as trained; rotated 30 deg, satisfactory; rotated, unsatisfactory",
+    )
+    axes = f.subplots(3, 4, squeeze=False)
+    for (t, unit, configs), row in zip(rows, axes, strict=True):
+        for ax in row[len(configs) :]:
+            fig.blank(ax)
+        for ax, (sectors, n, s) in zip(row, configs, strict=False):
             fig.grasp_panel(
+                ax,
                 unit,
                 unit.point_at(sector_angle(np.array(sectors))),
                 f"{t.label}: {n}x, " + (f"S_G {s:.2f}" if np.isfinite(s) else "infeasible"),
                 good=s <= SUCCESS_THRESHOLD,
             )
-            for sectors, n, s in configs
-        ]
-        panels += row + [np.full((220, 190, 3), 255, np.uint8)] * (4 - len(row))
-    fig.save_png(
-        out / "fig02_atomic_configurations.png",
-        fig.grid_of(
-            panels,
-            4,
-            "Figure 2: as trained; rotated 30 deg, satisfactory; rotated, unsatisfactory",
-        ),
-    )
+    fig.save_png(f, out / "fig02_atomic_configurations.png")
 
 
 def _figure10_11(out: Path, predictor, curves: dict) -> None:
@@ -185,7 +183,11 @@ def _figure10_11(out: Path, predictor, curves: dict) -> None:
         return np.stack([scaled_error(s[:, 0]), scaled_error(s[:, 1])], axis=1)
 
     tag = {True: "success", False: "fail"}
-    m10 = fig.state_heatmap(
+    side = fig.PANEL_SIZE
+    f = fig.new_figure((5.6 + side, 2 * side + 0.3))
+    grid = f.add_gridspec(2, 2, width_ratios=(5.6, side))
+    fig.state_heatmap(
+        f.add_subplot(grid[:, 0]),
         fs,
         "Figure 10: paths on the square over the F/S map",
         -1,
@@ -198,13 +200,16 @@ def _figure10_11(out: Path, predictor, curves: dict) -> None:
     )
     unit = paper_object("square").unit_moment()
     start = unit.point_at(theta0[j])
-    cfgs = [
+    for row, (k, r) in enumerate((("KB", kb), ("PI", pi))):
         fig.grasp_panel(
-            unit, r.points[j], f"{k}: S_G {r.s_g[j]:.2f}", start=start, good=bool(r.success[j])
+            f.add_subplot(grid[row, 1]),
+            unit,
+            r.points[j],
+            f"{k}: S_G {r.s_g[j]:.2f}",
+            start=start,
+            good=bool(r.success[j]),
         )
-        for k, r in (("KB", kb), ("PI", pi))
-    ]
-    fig.save_png(out / "fig10_state_paths.png", fig.hstack([m10, fig.grid_of(cfgs, 1)]))
+    fig.save_png(f, out / "fig10_state_paths.png")
 
     def visits(r: TrialBatch) -> NDArray[np.float64]:
         s = r.states[np.isfinite(r.states[..., 0])]
@@ -212,61 +217,65 @@ def _figure10_11(out: Path, predictor, curves: dict) -> None:
         np.add.at(h, (state_bin(s[:, 0]), state_bin(s[:, 1])), 1.0)
         return np.log10(1.0 + 1e4 * h / h.sum())
 
-    a = fig.state_heatmap(fs, "(a) F/S predictor output", -1, 1, colorbar=("success", "failure"))
-    b = fig.state_heatmap(
-        visits(kb),
-        f"(b) KB visits, square ({100 * kb.failure_rate:.0f}% fail)",
-        colorbar=("rare", "log freq"),
+    f = fig.new_figure((3 * 4.6 + side, 2 * side + 0.6), "Figure 11")
+    grid = f.add_gridspec(2, 4, width_ratios=(4.6, 4.6, 4.6, side))
+    fig.state_heatmap(
+        f.add_subplot(grid[:, 0]),
+        fs,
+        "(a) F/S predictor output",
+        -1,
+        1,
+        colorbar=("success", "failure"),
     )
-    c = fig.state_heatmap(
-        visits(pi),
-        f"(c) PI visits, square ({100 * pi.failure_rate:.0f}% fail)",
-        colorbar=("rare", "log freq"),
-    )
-    att = []
-    for ok in (False, True):
+    for col, (r, name) in enumerate(((kb, "KB"), (pi, "PI")), start=1):
+        fig.state_heatmap(
+            f.add_subplot(grid[:, col]),
+            visits(r),
+            f"({'bc'[col - 1]}) {name} visits, square ({100 * r.failure_rate:.0f}% fail)",
+            colorbar=("rare", "log freq"),
+        )
+    for row, ok in enumerate((False, True)):
+        ax = f.add_subplot(grid[row, 3])
         k = np.flatnonzero(kb.success == ok)
-        if k.size:
-            att.append(
-                fig.grasp_panel(
-                    unit,
-                    kb.points[k[0]],
-                    f"KB {'success' if ok else 'failure'} S_G {kb.s_g[k[0]]:.2f}",
-                    good=ok,
-                )
-            )
-    fig.save_png(
-        out / "fig11_fs_map_visits.png", fig.grid_of([a, b, c, fig.grid_of(att, 1)], 4, "Figure 11")
-    )
+        if not k.size:
+            fig.blank(ax)
+            continue
+        fig.grasp_panel(
+            ax,
+            unit,
+            kb.points[k[0]],
+            f"KB {'success' if ok else 'failure'} S_G {kb.s_g[k[0]]:.2f}",
+            good=ok,
+        )
+    fig.save_png(f, out / "fig11_fs_map_visits.png")
 
 
 def _figure12(out: Path, runs: dict[str, dict]) -> None:
     """Figure 12: the two most frequent configurations per object (member 0 of a family) for KB,
-    QL and PI."""
-    panels = []
-    for o, name in enumerate(PAPER_OBJECTS):
+    QL and PI, one object a row."""
+    side = 1.5
+    f = fig.new_figure(
+        (6 * side, len(PAPER_OBJECTS) * side + 0.4),
+        "Figure 12: most frequent configurations per object (rows): KB | QL | PI",
+    )
+    axes = f.subplots(len(PAPER_OBJECTS), 6, squeeze=False)
+    for o, (name, row) in enumerate(zip(PAPER_OBJECTS, axes, strict=True)):
         poly = paper_object(name)
         unit = poly.unit_moment()
-        for key in ("kb", "ql", "pi"):
+        for c, key in enumerate(("kb", "ql", "pi")):
             m = runs[key]["object"] == o
             tops = configurations(poly, runs[key]["theta"][m], runs[key]["s_g"][m], 2)
             for k in range(2):
-                if k < len(tops):
-                    pts, frac, s = tops[k]
-                    panels.append(
-                        fig.grasp_panel(
-                            unit,
-                            pts,
-                            f"{key} {100 * frac:.0f}% S_G {s:.2f}",
-                            size=150,
-                            good=s <= SUCCESS_THRESHOLD,
-                        )
-                    )
-                else:
-                    panels.append(np.full((180, 150, 3), 255, np.uint8))
-    fig.save_png(
-        out / "fig12_configurations.png",
-        fig.grid_of(
-            panels, 6, "Figure 12: most frequent configurations per object (rows): KB | QL | PI"
-        ),
-    )
+                ax = row[2 * c + k]
+                if k >= len(tops):
+                    fig.blank(ax)
+                    continue
+                pts, frac, s = tops[k]
+                fig.grasp_panel(
+                    ax,
+                    unit,
+                    pts,
+                    f"{key} {100 * frac:.0f}% S_G {s:.2f}",
+                    good=s <= SUCCESS_THRESHOLD,
+                )
+    fig.save_png(f, out / "fig12_configurations.png")

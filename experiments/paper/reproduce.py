@@ -49,7 +49,12 @@ from controllers.grasp.qlearning import (
     QL_MODEL_FILE,
     save_q_table,
 )
-from controllers.grasp.run_folder import finished_mark, mark_started, write_results
+from controllers.grasp.run_folder import (
+    REPRODUCE_COMMAND,
+    finished_mark,
+    mark_started,
+    write_results,
+)
 from controllers.grasp.trials import GAIN
 from experiments.paper.tables import (
     PAPER_TABLE1_KB,
@@ -302,7 +307,7 @@ def provenance(res: dict, cfg: ReproduceConfig, checks: dict) -> dict:
     model_seed = {k: res["per_seed"][k][str(seed)] for k in ("ql", "pi", "pi5")}
     sets = res["general"]["sets"]
     return {
-        "command": cfg.command or "python -m controllers.grasp reproduce",
+        "command": cfg.command or REPRODUCE_COMMAND,
         "seed": seed,
         "run_seeds": res["seeds"],
         "git_commit": git_commit(),

@@ -76,9 +76,9 @@ FIGURE10_TRIALS = 200
 NOISE_SCALES: tuple[float, ...] = (2.0, 4.0, 6.0)
 #: The general PI controller (beyond the paper): F/S predictor trained on random convex polygons
 #: (``polygon_set("train")``), noise read as a fraction of a turn, failure predicted when the
-#: output exceeds -0.5. Reading and threshold were chosen on the "validation" polygons (never on
-#: the held-out ones) over seeds 0-2, among {literal, turn, perimeter} x {0, -0.25, -0.5, -0.75};
-#: every run reports the untuned setting (turn, threshold 0) beside it.
+#: output exceeds -0.5; every run reports the validation polygons' table and the setting with
+#: threshold 0 beside it.
+#: Chosen on the validation polygons: docs/findings.md, "General predictor's reading and threshold".
 GENERAL_SETTINGS = {"reading": "turn", "threshold": -0.5}
 #: Knowledge-based training trials per epoch of the general predictor (each on a new polygon).
 GENERAL_TRIALS_PER_EPOCH = 90

@@ -1,5 +1,5 @@
 """The measured-force demand recomputed from a study's ``results.jsonl``, with variants: what in
-the measure predicts the hold (docs/grasp3d_physics.md, "What carries it").
+the measure predicts the hold (docs/physics_study.md; docs/findings.md, "Measured-force demand").
 
 ``python -m experiments.physics.demand_variants runs/physics3d/results.jsonl`` prints, per
 variant, the AUC (pooled and per model) over the tested grasps that have contact points:

@@ -19,7 +19,7 @@ the measured grip can resist (D <= 1: the forces the hand already applies suffic
 some stage cannot be resisted at all). Lower predicts a hold, as for S_G. Solved with clarabel's
 second-order cones (the friction cones are exact).
 
-Written down before the study that tests it was run (docs/grasp3d_physics.md).
+What it predicts and what it cannot: docs/findings.md, "Measured-force demand".
 """
 
 from __future__ import annotations

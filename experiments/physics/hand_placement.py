@@ -14,9 +14,9 @@ needs each grasp placed quickly and the same way every time, not the task cycle'
   the task cycle's reach cost (total squared fingertip-to-contact distance, each contact at its
   fingertip's height). The task cycle's rule (the nearest assignment only, ranked by distance)
   gives a finger a face its pad turns away from on most evenly spread grasps (a square with one
-  contact per face); see docs/physics_study.md for the counts. The ranked pairs are then taken
-  in turn from each kind of seed (palm gap and pre-shape depth, :func:`interleaved_starts`):
-  the ranking alone puts one kind in every early place;
+  contact per face: docs/findings.md, "Finger assignment by pad facing"). The ranked pairs are
+  then taken in turn from each kind of seed (palm gap and pre-shape depth,
+  :func:`interleaved_starts`): the ranking alone puts one kind in every early place;
 - **Posture Control** (the task cycle's IK seeding for a top grasp, one implementation:
   :func:`controllers.preshape.palm_search.search_seeds`): from each of the first :data:`SEEDS_TRIED`
   (seed, assignment) pairs so taken, arm and hand IK
@@ -60,9 +60,7 @@ PALM_GAPS = (0.005, 0.02)
 #: Wrist yaws (equally spaced over a turn) the seed postures take over the block.
 YAWS = 12
 #: (seed posture, finger assignment) pairs Posture Control starts from per grasp, best first.
-#: Chosen by looking at the result: on 5 grasps x 3 controllers of six objects (90 grasps, seed
-#: 0) 6 placed 76, 12 placed 77 at about twice the time of a grasp no pair places (with the
-#: pairs in rank order, before :func:`interleaved_starts`).
+#: Chosen by its effect on placement: docs/findings.md, "Posture Control starts per grasp".
 SEEDS_TRIED = 6
 #: Largest tilt (rad) of the palm's approach axis from vertical (the task cycle's limit for a
 #: top grasp, :attr:`controllers.preshape.palm_candidates.PalmPoseParams.max_palm_tilt_top`).
@@ -250,7 +248,8 @@ def place_from(
 ) -> Placement:
     """Posture Control for contacts ``theta`` from each of ``pairs`` (seed posture, contacts
     given to its fingers) in order: the task cycle's IK seeding
-    (:func:`controllers.preshape.palm_search.search_seeds`), the palm's tilt measured from vertical; the
+    (:func:`controllers.preshape.palm_search.search_seeds`), the palm's tilt measured from vertical;
+    the
     first confirmed posture places the hand."""
     th = np.asarray(theta, dtype=float)
     checker = CollisionChecker(world) if checker is None else checker

@@ -5,7 +5,7 @@ Control when a contact is unreachable").
 In the task cycle the grasp controller starts from the fingertips' own contacts (Fine Reach put
 them on the block) and every few steps checks that the hand still reaches its contacts. The
 study draws its initial contacts uniformly in theta instead, so some of its grasps ask for a
-finger arrangement the hand does not have (docs/grasp3d_physics.md, "What limits reach"). With
+finger arrangement the hand does not have (docs/physics_study.md, "What it finds"). With
 the regrasp, such a grasp is synthesized once more, by the same controller and its generator,
 from where the best-ranked seed posture's pre-shaped fingertips touch the block (the
 :func:`~experiments.physics.hand_placement.ranked_starts` pair first in rank for the grasp that

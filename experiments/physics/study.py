@@ -1,5 +1,5 @@
 """Does S_G (Eq. 13) predict a physical grasp? Grasps synthesized by the paper's controllers,
-taken by the simulated hand and tested in MuJoCo (issue 12, part 2).
+taken by the simulated hand and tested in MuJoCo.
 
 One grasp, start to end (:func:`test_grasp`):
 1. synthesis: a :class:`~controllers.grasp.synthesis.GraspSynthesis` (KB, QL or PI, section 3.6)
@@ -13,7 +13,8 @@ One grasp, start to end (:func:`test_grasp`):
    driven: the approach is not under test) and the servos hold them. A grasp no start reaches is
    *unreachable*;
 3. the task cycle's Grasp Object: :func:`~controllers.hand.grip.close` with the touch guard, then
-   :func:`~controllers.hand.grip.squeeze` to :data:`controllers.hand.grip.GRIP_FORCE` per finger, shared as
+   :func:`~controllers.hand.grip.squeeze` to :data:`controllers.hand.grip.GRIP_FORCE` per finger,
+   shared as
    the S_G LP's normal forces. A finger that never touches makes the grasp *not closed* (counted
    with the unreachable ones, not as a drop);
 4. the physical test: the table's collisions are switched off (the block hangs in the hand), an
@@ -410,7 +411,8 @@ class Job:
     seed: int
     model: str = "planar"
     #: planar model only: take every contact this far (m) below the top instead of at its
-    #: fingertip's height (the probe behind the 3-D band, docs/grasp3d_physics.md)
+    #: fingertip's height (the probe behind the 3-D band: docs/findings.md, "Depth of a top grasp's
+    #: contacts")
     depth: float | None = None
     #: the hand on the arm (``World.build``'s kinds; --hand)
     hand: str = DEFAULT_HAND

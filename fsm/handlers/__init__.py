@@ -2,7 +2,10 @@
 ``vision`` and ``controllers``, updates the :class:`~fsm.context.Episode` and returns the next
 state with the reason for the transition (a :class:`Step`), or raises
 :class:`TaskFailedError` with a named reason. :data:`HANDLERS` maps each state to its
-handler (:mod:`fsm.machine` runs them)."""
+handler (:mod:`fsm.machine` runs them). What the states share lives beside this package:
+:mod:`fsm.episode_queries` (the episode's view of the controllers' inputs),
+:mod:`fsm.lateral_preshape` (the lateral pre-shape search's inputs and result) and
+:mod:`fsm.recovery` (the regrasp, looking again, the other approach)."""
 
 from __future__ import annotations
 

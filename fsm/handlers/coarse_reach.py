@@ -12,17 +12,12 @@ from numpy.typing import NDArray
 
 from controllers.planning.cspace import CollisionChecker
 from controllers.preshape.palm_candidates import from_base_side, robot_base_xy
+from controllers.preshape.set_down_check import SetDownGate, next_tilt
 from controllers.reach.arm_path import START_IN_COLLISION, ArmPath, execute_path
 from controllers.reach.coarse import APPROACHES, PITCH_TOLERANCE, PRESHAPE, plan_coarse_reach
 from fsm.context import Episode
-from fsm.handlers.common import rise_clear
-from fsm.handlers.lateral_preshape import lateral_preshape
-from fsm.handlers.set_down_pitch import (
-    SetDownGate,
-    next_tilt,
-    pitch_for_set_down,
-    pitched_at_least,
-)
+from fsm.episode_queries import rise_clear
+from fsm.lateral_preshape import lateral_preshape, pitch_for_set_down, pitched_at_least
 from fsm.states import Failure, State, Step, TaskFailedError
 
 
@@ -30,12 +25,13 @@ def coarse_reach(ep: Episode) -> Step:
     """Coarse Reach: a harmonic path in the arm's c-space to above (top) or beside (lateral)
     the perceived block; the path determines the approach unless one is forced. A lateral
     approach then takes its pre-shape at a palm pose beside the block
-    (:func:`fsm.handlers.lateral_preshape.lateral_preshape`). Where that search passes over
+    (:func:`fsm.lateral_preshape.lateral_preshape`). Where that search passes over
     ``config.lateral_grasp_set_down_checks`` grasps that cannot set the block down at the place
-    point and a lateral axis pitched further down is left (:data:`LATERAL_TILTS`), Coarse Reach
-    is entered again for that pitch (``ep.set_down_floor``). Under ``auto``, an approach given
-    up because its grasp was unreachable at its end (:mod:`fsm.handlers.other_approach`) is not
-    planned again, and the log says so."""
+    point and a lateral axis pitched further down is left
+    (:data:`controllers.reach.coarse.LATERAL_TILTS`), Coarse Reach is entered again for that
+    pitch (``ep.set_down_floor``). Under ``auto``, an approach given up because its grasp was
+    unreachable at its end (:func:`fsm.recovery.other_approach_left`) is not planned again, and
+    the log says so."""
     approaches = APPROACHES if ep.options.approach == "auto" else (ep.options.approach,)
     # under auto, an approach whose grasp proved unreachable at its end is not planned again
     approaches = tuple(a for a in approaches if a not in ep.closed_approaches)
@@ -81,7 +77,7 @@ def coarse_reach(ep: Episode) -> Step:
     touched = ", ".join(f"{a}-{b}" for a, b in run.contacts) or "nothing"
     preshape = ""
     if plan.approach == "lateral":
-        # after the camera looked again (fsm.handlers.look_again), the next palm pose
+        # after the camera looked again (fsm.recovery.look_again), the next palm pose
         done = None
         gate = _set_down_gate(ep, None if far else plan.goal.pitch)
         if ep.retry_floor is not None:  # a grasp that holds more than the one that slipped
@@ -116,7 +112,7 @@ def coarse_reach(ep: Episode) -> Step:
 def _set_down_gate(ep: Episode, pitch: float | None) -> SetDownGate | None:
     """The lateral pre-shape's set-down gate at a goal pitched ``pitch`` (rad; None: a far-side
     goal's, no pitch left to take) strict while a further pitch is left to take
-    (:func:`fsm.handlers.set_down_pitch.next_tilt`); None where no grasp is asked for a
+    (:func:`controllers.preshape.set_down_check.next_tilt`); None where no grasp is asked for a
     set-down (no place point, or no checks configured)."""
     checks = ep.config.lateral_grasp_set_down_checks
     if not checks or ep.place is None:

@@ -19,8 +19,8 @@ from controllers.reach.fine import (
     reach_along_normals,
 )
 from fsm.context import Episode
-from fsm.handlers.common import contact_arcs, sampled_preshape, slides, squeeze_reach
-from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.episode_queries import contact_arcs, is_lateral, sampled_preshape, squeeze_reach
+from fsm.recovery import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
 
@@ -30,7 +30,7 @@ def fine_reach_state(ep: Episode) -> Step:
     touch guard stops a finger that arrives early): by harmonic fields (:func:`_reach_by_fields`)
     or, after a sampled lateral pre-shape, along the contacts' normals (:func:`_reach_sampled`).
     A fingertip left more than ``config.fine_reach_give_up`` from its point starts a regrasp
-    (:func:`fsm.handlers.regrasp.regrasp_or_fail`)."""
+    (:func:`fsm.recovery.regrasp_or_fail`)."""
     result = _reach_sampled(ep) if sampled_preshape(ep) else _reach_by_fields(ep)
     worst = float(result.tip_error.max())
     if not result.reached and worst > ep.config.fine_reach_give_up:
@@ -67,11 +67,11 @@ def _reach_by_fields(ep: Episode) -> FineReachResult:
     tips = world.fingertip_positions()
     local = tips[:, :2] - np.asarray(ep.target.position_xy)
     theta = np.arctan2(local[:, 1], local[:, 0]) - ep.target.yaw
-    if slides(ep) and ep.preshape_contacts is not None:
+    if is_lateral(ep) and ep.preshape_contacts is not None:
         # the lateral pre-shape's contacts, which the reach test passed at this palm pose
         theta = ep.preshape_contacts.theta.copy()
     # a lateral hand's contacts stay on the faces it can take (its side's arc)
-    arcs = contact_arcs(ep, theta) if slides(ep) else None
+    arcs = contact_arcs(ep, theta) if is_lateral(ep) else None
     theta = keep_contacts(ep.target.polygon, theta, CONTACT_SEPARATION, robot.PAD_RADIUS, arcs)
     spread = contact_targets(ep.target, theta)
     z = np.clip(tips[:, 2], world.scene.table.height + 0.02, ep.target.top_z - GRASP_DEPTH)

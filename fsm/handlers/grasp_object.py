@@ -9,14 +9,14 @@ from controllers.hand.grip import GRIP_FORCE, close, move_hand, plan_grip, squee
 from controllers.hand.lateral_squeeze import lateral_squeeze
 from controllers.preshape.moves import preshape, retract
 from fsm.context import Episode
-from fsm.handlers.common import (
+from fsm.episode_queries import (
     block_centre,
     block_site,
+    is_lateral,
     planar_normal_forces,
-    slides,
     squeeze_reach,
 )
-from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.recovery import regrasp_or_fail
 from fsm.states import Failure, State, Step
 from hand_sim import robot
 
@@ -27,7 +27,7 @@ def grasp_object(ep: Episode) -> Step:
     misses, or a squeeze that does not reach the force, opens the hand for a regrasp."""
     world = ep.world
     contacts = ep.contacts
-    lateral = slides(ep)
+    lateral = is_lateral(ep)
     site = block_site(ep)
     open_time = ep.config.motion.preshape_time
     pressing = contacts.pressing  # all four, or a three-contact grasp's three

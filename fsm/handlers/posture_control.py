@@ -10,7 +10,6 @@ from dataclasses import replace
 import numpy as np
 
 from controllers.grasp.synthesis3d import GraspSynthesis3D
-from controllers.grasp.synthesis_lateral import LateralSynthesis3D
 from controllers.grasp.task_height import HEIGHT_GAP
 from controllers.hand.finger_assignment import ranked_assignments
 from controllers.hand.grip import PRE_CONTACT
@@ -28,15 +27,15 @@ from controllers.preshape.palm_candidates import (
 )
 from controllers.preshape.palm_search import PalmPoseResult, SeedStart, search_poses, search_seeds
 from fsm.context import Episode
-from fsm.handlers.common import (
+from fsm.episode_queries import (
     block_site,
+    is_lateral,
     plan_approach,
     reach_query,
     sampled_preshape,
     side_arcs,
-    slides,
 )
-from fsm.handlers.regrasp import regrasp_or_fail
+from fsm.recovery import regrasp_or_fail
 from fsm.states import MAX_FINE_REACH_LOOPS, MAX_POSTURE_RETRIES, State, Step
 
 
@@ -49,7 +48,7 @@ def posture_control(ep: Episode) -> Step:
     if ep.posture_mode == "hold" and sampled_preshape(ep):
         # a sampled lateral pre-shape's palm pose was chosen for its contacts, at the edge of
         # the fingers' workspace: raising the manipulability with the tips held moves the palm
-        # off it and the contacts out of reach (docs/task_cycle.md)
+        # off it and the contacts out of reach
         return Step(State.WRENCH_CLOSURE, "palm held where the sampled pre-shape put it")
     if ep.posture_mode == "hold":
         sol = solve_posture(
@@ -88,7 +87,7 @@ def posture_control(ep: Episode) -> Step:
     ep.contacts = found.contacts
     touched = ""
     plan = found.approach
-    if plan is None and slides(ep):
+    if plan is None and is_lateral(ep):
         plan = plan_approach(ep, found.qpos, found.contacts)
     if plan is not None:
         approach(block_site(ep), plan)
@@ -105,7 +104,7 @@ def posture_control(ep: Episode) -> Step:
         ).hand_q
         # a straight approach that meets a neighbour would push it: take an approach that clears
         # the perceived world instead (the fingers wider open), or give this posture up
-        # (docs/grasp3d_physics.md: the neighbours it pushed, and what the check changed)
+        # (docs/findings.md, "An approach that clears the neighbours")
         touches = approach_touches(block_site(ep), found.arm_q, hand_pre)
         if not touches:
             reposition(block_site(ep), found.arm_q, hand_pre)
@@ -139,9 +138,8 @@ def search_other_heights(ep: Episode) -> tuple[PalmPoseResult, float] | None:
     or the grasp is planar, lateral or still moving."""
     syn = ep.synthesis
     if (
-        slides(ep)
+        is_lateral(ep)
         or not isinstance(syn, GraspSynthesis3D)
-        or isinstance(syn, LateralSynthesis3D)
         or not syn.done
         or ep.heights_searched is syn
     ):
@@ -162,16 +160,15 @@ def reachable_posture(ep: Episode) -> PalmPoseResult:
     contacts given to the fingers, the search's label and the approach plan (None when the
     arm's own IK found the posture). A top grasp first follows the arm's IK from wrist-roll
     seeds (:func:`controllers.preshape.palm_search.search_seeds`), then, when that finds nothing,
-    searches
-    :func:`controllers.preshape.palm_candidates.top_poses` (the hand IK starting from the hand's posture
-    at each pose: a top grasp's contacts do not slide, and the sampled finger starts are for
-    sliding contacts); a lateral grasp searches
-    :func:`controllers.preshape.palm_candidates.lateral_poses`. Over random scenes 0-29 (3-5 blocks, pi)
-    the palm-pose search took the episodes delivered from 25 to 26."""
+    searches :func:`controllers.preshape.palm_candidates.top_poses` (the hand IK starting from
+    the hand's posture at each pose: a top grasp's contacts do not slide, and the sampled finger
+    starts are for sliding contacts); a lateral grasp searches
+    :func:`controllers.preshape.palm_candidates.lateral_poses`. Its effect on the bench:
+    docs/findings.md, "The palm-pose search above the block"."""
     params = ep.config.palm_pose
     rotation = ep.coarse.goal.palm_rotation
     where = PoseSetting(ep.world, ep.planning, ep.target, rotation)
-    if slides(ep):
+    if is_lateral(ep):
         if ep.preshape_rolls is not None:  # the hand turned as its pre-shape took it
             params = replace(params, lateral_rolls=ep.preshape_rolls)
         poses = lateral_poses(where, params, side_arcs(ep), hand=ep.preshape_hand_q)

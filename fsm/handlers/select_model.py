@@ -5,16 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.hand.finger_geometry import PerceivedPrism
-from controllers.planning.belief import planning_model
-from controllers.reach.coarse import ReachTarget
 from fsm.context import CycleRecord, Episode
-from fsm.perception import choose_blocks, other_footprints, perceive, place_for_cycle
-from fsm.recorder_protocol import VisionView
+from fsm.perception import (
+    adopt_model,
+    choose_blocks,
+    log_view,
+    other_footprints,
+    perceive,
+    place_for_cycle,
+)
 from fsm.states import Failure, State, Step, TaskFailedError
 from hand_sim.blocks import WOOD_DENSITY
 from hand_sim.robot import STANDARD_GRAVITY
-from vision import ObjectModel, VisionError
+from vision import VisionError
 
 
 def select_model(ep: Episode) -> Step:
@@ -78,32 +81,6 @@ def select_model(ep: Episode) -> Step:
         f"picked {name}: {model.n_edges} edges, centroid "
         f"({model.centroid[0]:.3f}, {model.centroid[1]:.3f}) m, "
         f"yaw {np.degrees(model.yaw):.0f} deg; {place_text(record)}",
-    )
-
-
-def adopt_model(ep: Episode, name: str, model: ObjectModel) -> None:
-    """Take ``model`` as the picked block's (named ``name`` in the scene): the reach target, the
-    perceived prism the fingers keep clear of, and the planning model the arm's paths avoid."""
-    world = ep.world
-    ep.model = model
-    ep.target = ReachTarget.from_object_model(model)
-    ep.prism = PerceivedPrism.of(ep.target, world.scene.table.height)
-    ep.planning = planning_model(
-        world, name, ep.target.polygon, ep.target.yaw, ep.target.position_xy, ep.target.top_z
-    )
-
-
-def log_view(ep: Episode, model: ObjectModel) -> None:
-    """Record the overhead view Select/Model looked at and the picked block's model in it."""
-    ep.recorder.log_vision(
-        VisionView(
-            ep.selection.observation.rgb,
-            ep.selection.observation.geometry.K,
-            ep.selection.observation.geometry.cam_to_world,
-            model.world_vertices,
-            model.pixel_contour,
-            float(model.centroid[2]),
-        )
     )
 
 

@@ -9,26 +9,22 @@ from numpy.typing import NDArray
 from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.grasp.synthesis import GraspSynthesis
 from controllers.grasp.synthesis3d import GraspSynthesis3D
-from controllers.grasp.synthesis_lateral import LateralSynthesis3D
 from controllers.grasp.trials3d import HeightBand
-from controllers.hand.finger_assignment import FingerContacts
 from controllers.hand.grip import GRIP_FORCE
 from controllers.hand.reachability import (
-    BOTTOM_MARGIN,
     CONTACT_SEPARATION,
     MIN_PAD_SPACING,
-    TOP_MARGIN,
     reachable_contacts,
 )
 from controllers.reach.fine import MIN_CONTACT_HEIGHT, TOP_GRASP_DEPTHS, project_to_surface
 from fsm.context import Episode
-from fsm.handlers.common import (
+from fsm.episode_queries import (
     contact_arcs,
     contact_points,
+    is_lateral,
     reach_query,
     reach_start,
     sampled_preshape,
-    slides,
 )
 from fsm.recorder_protocol import SynthesisRecord
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -43,39 +39,18 @@ def synthesis_for(
     A top grasp's heights move in the band :data:`~controllers.reach.fine.TOP_GRASP_DEPTHS`
     below the top and above the table margin, the common height set by the task (the perceived
     weight over the grip force; the pushes along the world's axes). A lateral grasp is planar,
-    its contacts kept on their arcs; with ``TaskConfig.lateral_grasp_3d`` (off by default,
-    fsm.config says why) it is 3-D, the contacts on their arcs at the heights the fingers take
-    (the pre-shape's, then each reach test's;
-    :class:`~controllers.grasp.synthesis_lateral.LateralSynthesis3D`), scored with the weight."""
+    its contacts kept on their arcs (the side arcs, or a sampled pre-shape's own faces)."""
     separation = {"min_separation": CONTACT_SEPARATION, "separation_offset": robot.PAD_RADIUS}
     height = ep.prism.top - ep.prism.bottom
     low = max(height - TOP_GRASP_DEPTHS[1], MIN_CONTACT_HEIGHT)
     high = height - TOP_GRASP_DEPTHS[0]
     com_z = ep.prism.centre_z
-    if slides(ep):
+    if is_lateral(ep):
         # a lateral hand takes only the faces beside its approach axis: each contact stays on
-        # its side's arc; in 3-D at the height its finger takes (the hand's shape sets it)
+        # its side's arc
         arcs = contact_arcs(ep, np.asarray(theta, dtype=float))
-        lateral_top = height - TOP_MARGIN
-        if (
-            ep.options.grasp_model != "3d"
-            or not ep.config.lateral_grasp_3d
-            or lateral_top < BOTTOM_MARGIN
-        ):
-            return GraspSynthesis(
-                ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
-            )
-        return LateralSynthesis3D(
-            ep.target.polygon,
-            height,
-            HeightBand(BOTTOM_MARGIN, lateral_top),
-            ep.composer,
-            theta,
-            np.asarray(tips_z, dtype=float) - com_z,
-            ep.rng,
-            arcs=arcs,
-            load=ep.expected_load / GRIP_FORCE,
-            **separation,
+        return GraspSynthesis(
+            ep.target.polygon, ep.composer, theta, ep.rng, arcs=arcs, **separation
         )
     if ep.options.grasp_model != "3d" or low > high:
         return GraspSynthesis(ep.target.polygon, ep.composer, theta, ep.rng, **separation)
@@ -107,7 +82,7 @@ def wrench_closure(ep: Episode) -> Step:
         tips = world.fingertip_positions()
         start = project_to_surface(ep.target, tips, table_z=table_z).theta
         start_z = tips[:, 2]
-        if slides(ep) and ep.preshape_contacts is not None:
+        if is_lateral(ep) and ep.preshape_contacts is not None:
             # a lateral grasp starts from the pre-shape's contacts, which the hand reaches, at
             # the heights its fingers took there
             pressing = ep.preshape_contacts.pressing  # a three-contact grasp's three
@@ -115,7 +90,7 @@ def wrench_closure(ep: Episode) -> Step:
             start_z = ep.preshape_contacts.points[pressing, 2].copy()
         ep.synthesis = synthesis_for(ep, start, start_z)
         ep.last_reachable = None
-        if slides(ep):
+        if is_lateral(ep):
             _remember_if_reachable(ep)
     syn = ep.synthesis
     stopped = ""
@@ -155,9 +130,8 @@ def wrench_closure(ep: Episode) -> Step:
         if syn.done and reach.min_spacing < MIN_PAD_SPACING:
             raise TaskFailedError(Failure.CONTACT_UNREACHABLE, reach.reason)
         ep.recorder.log_reachability(record.posture_retries, reach.reachable, reach.reason)
-        if reach.reachable and slides(ep):
+        if reach.reachable and is_lateral(ep):
             ep.last_reachable = (syn.theta, contacts, reach, syn.steps)
-            _take_heights(ep, contacts)
         if not reach.reachable and _last_reachable_grasp(ep):
             theta, ep.contacts, ep.reach, at = ep.last_reachable
             stopped = (
@@ -195,7 +169,7 @@ def wrench_closure(ep: Episode) -> Step:
     record.contact_fingers = [robot.FINGERS[f] for f in pressing]
     passes = score.feasible and score.s_g <= gate
     if not syn.converged and not syn.stopped:
-        if not (slides(ep) and passes):
+        if not (is_lateral(ep) and passes):
             raise TaskFailedError(
                 Failure.GRASP_NOT_CONVERGED, f"contacts still moving after {syn.steps} steps"
             )
@@ -208,18 +182,9 @@ def wrench_closure(ep: Episode) -> Step:
     return Step(
         State.GRASP_OBJECT,
         ("converged" if syn.converged else "stopped")
-        + f" in {syn.steps} steps, S_G {score.s_g:.3f}{_lateral_3d(ep)}, reachable "
+        + f" in {syn.steps} steps, S_G {score.s_g:.3f}, reachable "
         f"(pads {np.degrees(ep.reach.pad_angle).round(0).tolist()} deg off their faces)" + stopped,
     )
-
-
-def _lateral_3d(ep: Episode) -> str:
-    """For the log: a lateral 3-D grasp's S_G is in 3-D with the weight, at these heights."""
-    syn = ep.synthesis
-    if not isinstance(syn, LateralSynthesis3D):
-        return ""
-    above = (0.5 * (ep.prism.top - ep.prism.bottom) + syn.heights) * 100.0
-    return f" (3-D, the weight; contacts {above.round(1).tolist()} cm above its base)"
 
 
 def _remember_if_reachable(ep: Episode) -> None:
@@ -248,18 +213,6 @@ def _remember_if_reachable(ep: Episode) -> None:
     )
     if reach.reachable:
         ep.last_reachable = (theta, contacts, reach, syn.steps)
-        _take_heights(ep, contacts)
-
-
-def _take_heights(ep: Episode, contacts: FingerContacts) -> None:
-    """A lateral 3-D grasp takes the heights the fingers took in a reach test (each contact's,
-    in the controller's order) for its next steps and its S_G."""
-    syn = ep.synthesis
-    if not isinstance(syn, LateralSynthesis3D):
-        return
-    z = np.empty(len(contacts.contact_of_finger))
-    z[list(contacts.contact_of_finger)] = contacts.points[:, 2]
-    syn.set_heights(z - ep.prism.centre_z)
 
 
 def _last_reachable_grasp(ep: Episode) -> bool:
@@ -268,7 +221,7 @@ def _last_reachable_grasp(ep: Episode) -> bool:
     hand reaches only a few centimetres of each side face (the 5-joint arm cannot turn it), so
     a grasp the controller would still improve is taken where the hand can make it, rather
     than lost to Posture Control's search."""
-    if ep.last_reachable is None or not slides(ep):
+    if ep.last_reachable is None or not is_lateral(ep):
         return False
     theta, _, reach, _ = ep.last_reachable
     score = ep.synthesis.score_at(theta)
@@ -279,6 +232,6 @@ def _gate(ep: Episode) -> float:
     """The S_G a grasp must reach (Eq. 13): 0.4, or a lateral grasp's gate for its number of
     contacts (:meth:`fsm.config.TaskConfig.lateral_gate_for`: counted from the thumb's
     opposition by default)."""
-    if not slides(ep):
+    if not is_lateral(ep):
         return SUCCESS_THRESHOLD
     return ep.config.lateral_gate_for(len(ep.synthesis.theta))

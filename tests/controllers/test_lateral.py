@@ -323,10 +323,9 @@ def test_a_lateral_grasp_of_the_rectangle_delivers_it(lateral_rectangle) -> None
 def test_the_3d_model_keeps_the_planar_lateral_grasp_by_default(
     lateral_rectangle, tmp_path: Path
 ) -> None:
-    """Issue 20 item 5: the 3-D lateral grasp (TaskConfig.lateral_grasp_3d) is off by default
-    (docs/task_cycle.md, "The lateral grasp in 3-D"), so the default ``--model 3d`` and
-    ``--model planar`` run the same lateral episode: the same transitions, contacts, S_G and
-    judgement."""
+    """A lateral grasp keeps the planar model (docs/findings.md, "The lateral grasp in 3-D"),
+    so the default ``--model 3d`` and ``--model planar`` run the same lateral episode: the same
+    transitions, contacts, S_G and judgement."""
     runs = {}
     for model, (code, s) in (
         ("3d", lateral_rectangle),

@@ -284,7 +284,8 @@ def test_the_lateral_gate_counts_from_the_thumbs_opposition_by_default() -> None
 
 
 def test_palm_poses_beside_the_block_keep_a_pitched_coarse_goals_pitch(square) -> None:
-    """Where the coarse reach's lateral goal is pitched down (controllers.reach.coarse.LATERAL_TILTS),
+    """Where the coarse reach's lateral goal is pitched down
+    (controllers.reach.coarse.LATERAL_TILTS),
     every palm pose of the pre-shape's search is pitched the same (forward kinematics of its
     arm posture), faces the block along the radial line through the palm, and keeps the finger
     row level up to its roll."""

@@ -212,7 +212,8 @@ def test_wrist_load_ignores_the_arms_own_acceleration() -> None:
 
 
 def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_the_target() -> None:
-    """controllers.preshape.moves.approach_touches: the pre-shaped hand's straight 8 cm approach to a
+    """controllers.preshape.moves.approach_touches: the pre-shaped hand's straight 8 cm approach to
+    a
     palm pose just above single_square's block meets a post standing where a fingertip passes
     (a neighbour it would push) and nothing else; without the post it meets nothing (the block
     itself, perceived or true, and the table are not neighbours)."""
@@ -254,7 +255,8 @@ def test_approach_touches_names_a_neighbour_on_the_straight_approach_and_never_t
 
 
 def test_the_arm_moves_between_backed_out_postures_straight_when_clear_else_harmonic() -> None:
-    """controllers.preshape.moves.move_backed_out, above clutter3's target: a small turn of the waist
+    """controllers.preshape.moves.move_backed_out, above clutter3's target: a small turn of the
+    waist
     and the wrist, well clear of everything, is taken in a straight joint-space line; with a
     clearance no line can keep (19 cm: the block below is nearer), the way back is planned as a
     harmonic path instead. Both end at their goal posture and push no block."""

@@ -25,7 +25,7 @@ from experiments.physics.synthesis import top_grasp_band
 
 OBJ = "hexagon"
 #: Seed 0, hexagon, KB grasp 0 (3-D): its contacts ask ff to press with the side of its
-#: fingertip from every start tried (docs/grasp3d_physics.md, "What limits reach").
+#: fingertip from every start tried (docs/physics_study.md, "Limits").
 JOB = Job(OBJ, PAPER_OBJECTS.index(OBJ), "kb", 0, (0,), 0, "3d")
 
 

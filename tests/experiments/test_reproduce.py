@@ -102,7 +102,7 @@ def test_report_rows_show_the_computed_results(runs):
 def test_provenance_records_the_run_and_its_checks(runs):
     a, _, _ = runs
     prov = json.loads((a / "provenance.json").read_text())
-    assert prov["seed"] == 1 and prov["command"].startswith("python -m controllers.grasp")
+    assert prov["seed"] == 1 and prov["command"].startswith("python -m experiments.paper reproduce")
     assert len(prov["git_commit"]) >= 7 and prov["date"][:2] == "20"
     assert set(prov["models"]) >= {"ql_q.npy", "pi_predictor_general.json"}
     assert prov["checks"] == check_figures(a)
@@ -118,7 +118,7 @@ def test_trials_cli_uses_saved_models(runs, capsys):
 
 def test_trials_cli_without_models_says_how_to_train(tmp_path, capsys):
     assert main(["trials", "--controller", "pi", "--models", str(tmp_path / "x")]) == 2
-    assert "reproduce --out" in capsys.readouterr().err
+    assert "python -m experiments.paper reproduce --out" in capsys.readouterr().err
 
 
 @pytest.mark.e2e

@@ -1,8 +1,8 @@
 """Coarse Reach pitches on where no grasp at its pitch can set the block down (issue 23), on
 random scene 59: at the level lateral goal the representative hand of
-``fsm.handlers.set_down_pitch.goal_sets_down`` has a set-down, but every grasp the palm-pose
-search would take there has none (the forearm passes within a millimetre of a neighbour at the
-place point). The search passes over ``lateral_grasp_set_down_checks`` of them (a strict gate:
+``controllers.preshape.set_down_check.goal_sets_down`` has a set-down, but every grasp the
+palm-pose search would take there has none (the forearm passes within a millimetre of a neighbour at
+the place point). The search passes over ``lateral_grasp_set_down_checks`` of them (a strict gate:
 a further pitch is left), and Coarse Reach is entered again for the axis pitched 15 deg down,
 where a lateral goal with a path exists. The bands of S_G are searched in their order alone
 (``lateral_reserve_before_bands`` off, as before that rule): with it, 59's first grasp is
@@ -20,7 +20,7 @@ import pytest
 
 from fsm import handlers
 from fsm.config import DEFAULT_CONFIG
-from fsm.handlers.set_down_pitch import pitched_at_least
+from fsm.lateral_preshape import pitched_at_least
 from fsm.states import Failure, State, TaskFailedError
 from tests.fsm.lateral import lateral_episode
 

@@ -1,6 +1,6 @@
 """`auto` weighs whether a grasp is reachable at the end of its path (issue 23, section 5.2):
 where the top approach has the shorter path but its grasp proves unreachable, the lateral
-approach is taken instead of the episode failing (``fsm.handlers.other_approach``)."""
+approach is taken instead of the episode failing (``fsm.recovery.other_approach_left``)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from fsm.handlers.other_approach import other_approach_left
+from fsm.recovery import other_approach_left
 from fsm.run import main
 from fsm.states import Failure
 

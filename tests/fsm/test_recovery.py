@@ -168,7 +168,7 @@ def test_regrasps_are_bounded_and_keep_the_failure_reason(tmp_path: Path) -> Non
     reason, not the regrasp's; no visit goes back to Fine Reach. (Its fourth call, with three
     allowed, is the squeeze's: the same bound, 2.5 times the run.) The top approach is asked
     for: under ``auto`` the unreachable top grasp now gives way to the lateral approach, which
-    has a path there and delivers (``fsm.handlers.other_approach``)."""
+    has a path there and delivers (``fsm.recovery.other_approach_left``)."""
     config = dataclasses.replace(DEFAULT_CONFIG, max_regrasps=0)
     result = _random_episode(104, tmp_path, config, approach="top")
     assert not result.success

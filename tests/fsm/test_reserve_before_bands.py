@@ -20,7 +20,7 @@ from controllers.grasp.score import SUCCESS_THRESHOLD
 from controllers.hand.lateral_squeeze import lateral_squeeze
 from fsm import handlers
 from fsm.config import DEFAULT_CONFIG
-from fsm.handlers.common import block_centre, planar_normal_forces
+from fsm.episode_queries import block_centre, planar_normal_forces
 from fsm.states import Failure, State, TaskFailedError
 from tests.fsm.lateral import lateral_episode
 

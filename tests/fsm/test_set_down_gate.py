@@ -1,6 +1,6 @@
-"""The palm-pose search's set-down gate (``fsm.handlers.set_down_pitch.SetDownGate``): a pose
-whose grasp cannot set the block down at the place point is passed over like one whose approach
-collides, until ``checks`` poses have been passed over for it; then taken unasked, or, by a
+"""The palm-pose search's set-down gate (``controllers.preshape.set_down_check.SetDownGate``):
+a pose whose grasp cannot set the block down at the place point is passed over like one whose
+approach collides, until ``checks`` poses have been passed over for it; then taken unasked, or, by a
 strict gate (a further pitch left), passed over unasked. On random scene 182 a level
 lateral hand has no set-down and a hand pitched 30 deg down has one
 (tests/controllers/test_set_down_check.py); the verdicts here are the delivery planner's own,
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from controllers.deliver.plan import plan_delivery
+from controllers.preshape.set_down_check import SetDownGate, next_tilt, set_down_gate
 from fsm.config import TaskConfig
-from fsm.handlers.set_down_pitch import SetDownGate, next_tilt, set_down_gate
 from hand_sim.world import World
 from tests.controllers.test_set_down_check import _grasp_pose, scene182  # noqa: F401
 

@@ -10,6 +10,7 @@ from controllers.grasp.predictor_training import (
     FSNetwork,
     balance_classes,
     bipolar_sigmoid,
+    predictor_of,
     train_predictor,
     visited_states,
 )
@@ -51,7 +52,7 @@ def test_numpy_evaluation_matches_the_torch_network():
     """The controllers evaluate the predictor in numpy (no torch import): the same float32
     output as the network it was trained as, to 1e-6, and the same failure verdicts."""
     net = FSNetwork(torch.Generator().manual_seed(3))
-    predictor = FSPredictor.of(net)
+    predictor = predictor_of(net)
     rng = np.random.default_rng(0)
     eps_fc, eps_mc = 10.0 ** rng.uniform(-6, 0, (2, 20000))
     with torch.no_grad():
@@ -84,3 +85,17 @@ def test_trained_predictor_separates_failure_attractors_from_success():
 def test_missing_predictor_file_is_not_trained(tmp_path):
     with pytest.raises(ModelNotTrainedError):
         FSPredictor.load(tmp_path / "none.json")
+
+
+def test_the_predictor_does_not_import_its_training():
+    """Evaluating the predictor needs neither its training module nor torch (no import circle:
+    only the training imports the predictor)."""
+    import ast
+    import inspect
+
+    from controllers.grasp import predictor
+
+    tree = ast.parse(inspect.getsource(predictor))
+    modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert "controllers.grasp.predictor_training" not in modules and "torch" not in modules

@@ -207,5 +207,5 @@ def test_saved_settings_travel_with_the_predictor(tmp_path):
 
 
 def test_untrained_pi_error_names_the_training_command(tmp_path):
-    with pytest.raises(ModelNotTrainedError, match=r"python -m controllers\.grasp reproduce"):
+    with pytest.raises(ModelNotTrainedError, match=r"python -m experiments\.paper reproduce"):
         make_composer("pi", tmp_path)

@@ -32,7 +32,7 @@ def test_shipped_models_are_found_from_any_directory(tmp_path, monkeypatch):
 
 def test_provenance_names_command_seed_commit_date_and_figures():
     prov = read_provenance()
-    assert prov["command"].startswith("python -m controllers.grasp reproduce")
+    assert prov["command"].startswith("python -m experiments.paper reproduce")
     assert prov["quick"] is False and prov["seed"] == prov["run_seeds"][0]
     assert re.fullmatch(r"[0-9a-f]{40}(-dirty)?", prov["git_commit"])
     assert re.fullmatch(r"20\d\d-\d\d-\d\dT.*", prov["date"])

@@ -1,4 +1,4 @@
-"""The task's common height and the next-best heights a hand can try (task_height, session3d)."""
+"""The task's common height and the next-best heights a hand can try (task_height, synthesis3d)."""
 
 import numpy as np
 import pytest

@@ -1,7 +1,8 @@
-"""What several state handlers share: the episode's view of the controllers' explicit inputs
-(the motion primitives' :class:`~controllers.preshape.moves.BlockSite`, the palm-pose search's
-:class:`~controllers.preshape.palm_search.ReachQuery`), and whether this cycle's grasp is
-lateral."""
+"""What the states ask of the running episode (section 5.2's task cycle): whether this cycle's
+approach is lateral, and the episode's view of the controllers' explicit inputs (the motion
+primitives' :class:`~controllers.preshape.moves.BlockSite`, the palm-pose search's
+:class:`~controllers.preshape.palm_search.ReachQuery`, the set-down check's
+:class:`~controllers.preshape.set_down_check.SetDownQuery`)."""
 
 from __future__ import annotations
 
@@ -9,16 +10,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.deliver.plan import RISE_STEP, SET_DOWN_CLEARANCE, rise_until_clear
-from controllers.grasp.score import grasp_score
 from controllers.grasp.synthesis3d import GraspSynthesis3D
+from controllers.hand import friction_reserve
 from controllers.hand.finger_assignment import FingerContacts
 from controllers.hand.finger_samples import PAD_NORMAL_LOCAL, FingerSamples
-from controllers.hand.lateral_squeeze import lateral_squeeze
 from controllers.hand.reachability import SQUEEZE_REACH
 from controllers.planning.cspace import CollisionChecker
-from controllers.preshape.lateral_grasp import (
-    SampledGrasp,
-)
+from controllers.preshape.lateral_search import arcs_of
 from controllers.preshape.moves import ApproachPlan, BlockSite, approach_plan
 from controllers.preshape.palm_candidates import (
     approach_origin,
@@ -27,17 +25,18 @@ from controllers.preshape.palm_candidates import (
     robot_base_xy,
 )
 from controllers.preshape.palm_search import ReachQuery
+from controllers.preshape.set_down_check import SetDownQuery
 from controllers.reach.arm_path import execute_path
 from fsm.context import Episode
 from hand_sim import robot
 from hand_sim.geometry import place_polygon
 
 
-def slides(ep: Episode) -> bool:
-    """Whether the contacts may slide up and down their faces: in a lateral grasp the finger row
-    is horizontal and the thumb below it, so the hand's shape, not a depth below the top, sets
-    each finger's height on the block (a top grasp keeps its fingers at the depth they
-    reached)."""
+def is_lateral(ep: Episode) -> bool:
+    """Whether this cycle's approach is lateral. Its contacts then slide up and down their
+    faces: in a lateral grasp the finger row is horizontal and the thumb below it, so the hand's
+    shape, not a depth below the top, sets each finger's height on the block (a top grasp keeps
+    its fingers at the depth they reached)."""
     return ep.coarse is not None and ep.coarse.approach == "lateral"
 
 
@@ -45,7 +44,7 @@ def top_to_clear(ep: Episode) -> float | None:
     """The block's top (world z) a lateral hand's fingertips rise above before it backs off
     from a block left standing (:func:`controllers.deliver.carry.retreat`), None for a top grasp
     or with ``lateral_retreat_rise`` off."""
-    return ep.target.top_z if slides(ep) and ep.config.lateral_retreat_rise else None
+    return ep.target.top_z if is_lateral(ep) and ep.config.lateral_retreat_rise else None
 
 
 def rise_clear(ep: Episode, clear: CollisionChecker) -> float | None:
@@ -71,19 +70,20 @@ def finger_samples(ep: Episode) -> FingerSamples:
 
 def squeeze_reach(ep: Episode) -> float:
     """How far past its contact each fingertip must reach in this cycle's grasp."""
-    return ep.config.lateral_squeeze_reach if slides(ep) else SQUEEZE_REACH
+    return ep.config.lateral_squeeze_reach if is_lateral(ep) else SQUEEZE_REACH
 
 
 def sampled_preshape(ep: Episode) -> bool:
     """Whether this cycle's lateral pre-shape took sampled contacts (``ep.preshape_hand_q`` is
     the posture that took them): each stays on its own face at its height, the reach tests start
     from that posture and the arm holds the pre-shape's palm pose."""
-    return slides(ep) and ep.preshape_hand_q is not None
+    return is_lateral(ep) and ep.preshape_hand_q is not None
 
 
 def idle_finger(ep: Episode) -> int | None:
     """The finger that takes no contact in this cycle's grasp (a three-contact lateral
-    pre-shape's, :func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`), or None."""
+    pre-shape's, :func:`controllers.preshape.lateral_grasp.three_contact_lateral_grasp`), or
+    None."""
     return ep.preshape_contacts.idle if sampled_preshape(ep) else None
 
 
@@ -93,24 +93,11 @@ def block_centre(ep: Episode) -> NDArray[np.float64]:
     return np.array([*ep.target.position_xy, ep.target.top_z - 0.5 * ep.model.height])
 
 
-def grasp_reserve(ep: Episode, grasp: SampledGrasp) -> float:
-    """A sampled lateral grasp's friction reserve (N) by the 3-D model, squeezed as Grasp
-    Object would squeeze it (:func:`controllers.hand.lateral_squeeze.lateral_squeeze`); -inf where no
-    forces hold the weight."""
-    polygon = ep.target.polygon
-    normals_xy = place_polygon(polygon.locate(grasp.theta).normal, (0.0, 0.0), ep.target.yaw)
-    normals = np.column_stack([normals_xy, np.zeros(len(grasp.theta))])
-    planar = planar_normal_forces(ep, grasp.theta)
-    squeeze = lateral_squeeze(grasp.points, normals, planar, ep.expected_load, block_centre(ep))
-    return -np.inf if squeeze.reserve is None else squeeze.reserve
-
-
 def planar_normal_forces(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
     """The normal forces (n,) of the S_G linear programme (Eq. 13) for contacts ``theta`` on the
     perceived polygon, in its unit-moment frame: the squeeze's shares (a lateral squeeze's
-    prior)."""
-    frames = ep.target.polygon.unit_moment().locate(theta)
-    return grasp_score(frames.point, frames.normal).normal_forces
+    prior; :func:`controllers.hand.friction_reserve.planar_normal_forces`)."""
+    return friction_reserve.planar_normal_forces(ep.target.polygon, theta)
 
 
 def block_site(ep: Episode) -> BlockSite:
@@ -122,7 +109,7 @@ def block_site(ep: Episode) -> BlockSite:
         ep.target,
         ep.world.block_body_id(ep.target_name),
         ep.coarse.goal.palm_rotation[:, 2],
-        lateral=slides(ep),
+        lateral=is_lateral(ep),
         params=ep.config.motion,
     )
 
@@ -133,7 +120,7 @@ def reach_query(ep: Episode) -> ReachQuery:
     first needed: the reach test searches them for sliding contacts only), unless the pre-shape's
     contacts were sampled: those are taken at their heights; a top 3-D grasp's contacts are
     taken at their own heights."""
-    lateral = slides(ep)
+    lateral = is_lateral(ep)
     sampled = sampled_preshape(ep)
     # a lateral hand's fingers slide to the heights they can take (a lateral 3-D grasp then
     # takes those heights), but keep the heights of sampled pre-shape contacts (each finger on
@@ -195,8 +182,9 @@ def contact_points(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float6
 
 def side_arcs(ep: Episode) -> NDArray[np.float64]:
     """The stretches of the perceived block's outline this cycle's lateral hand can take
-    (:func:`controllers.preshape.palm_candidates.lateral_arcs`; row 0 left of the approach axis, row 1
-    right), from the base's side of the block or, as the coarse reach's palm, its far side."""
+    (:func:`controllers.preshape.palm_candidates.lateral_arcs`; row 0 left of the approach axis,
+    row 1 right), from the base's side of the block or, as the coarse reach's palm, its far
+    side."""
     return lateral_arcs(ep.target, approach_from(ep), ep.config.palm_pose)
 
 
@@ -206,25 +194,30 @@ def approach_from(ep: Episode) -> NDArray[np.float64]:
     return approach_origin(robot_base_xy(ep.world), ep.target, ep.coarse.goal.palm_rotation)
 
 
-def arcs_of(arcs: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Each contact's arc (n, 2): the one of ``arcs`` (:func:`side_arcs`) it lies on or is
-    nearest to (by contact coordinate)."""
-    two_pi = 2.0 * np.pi
-
-    def distance(t: float, arc: NDArray[np.float64]) -> float:
-        span = float(np.mod(arc[1] - arc[0], two_pi))
-        rel = float(np.mod(t - arc[0], two_pi))
-        return 0.0 if rel <= span else min(rel - span, two_pi - rel)
-
-    return np.array([min(arcs, key=lambda arc: distance(float(t), arc)) for t in theta])
-
-
 def contact_arcs(ep: Episode, theta: NDArray[np.float64]) -> NDArray[np.float64]:
     """Each lateral contact's arc (n, 2): the pre-shape contact's own face when they were sampled
-    (:func:`controllers.preshape.palm_candidates.face_arcs`), else its side's (:func:`arcs_of` of
-    :func:`side_arcs`)."""
+    (:func:`controllers.preshape.palm_candidates.face_arcs`), else its side's
+    (:func:`controllers.preshape.lateral_search.arcs_of` of :func:`side_arcs`)."""
     if sampled_preshape(ep):
         inset = ep.config.palm_pose.side_inset
         contacts = ep.preshape_contacts
         return face_arcs(ep.target.polygon, contacts.theta[contacts.pressing], inset)
     return arcs_of(side_arcs(ep), theta)
+
+
+def set_down_query(ep: Episode) -> SetDownQuery | None:
+    """The set-down check's inputs for this cycle's block and place point (None without a place
+    point): the hand may set the block down nearer its neighbours at a point the user or the
+    scene asked for (the first cycle's)."""
+    if ep.place is None:
+        return None
+    return SetDownQuery(
+        ep.world,
+        ep.planning,
+        ep.target,
+        ep.target_name,
+        ep.place,
+        ep.model.height,
+        ep.cycle == 0,
+        ep.config.palm_pose,
+    )
