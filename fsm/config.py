@@ -15,6 +15,7 @@ from controllers.grasp.score import SUCCESS_THRESHOLD, opposition_floor
 from controllers.grasp.task_height import HEIGHT_TRIES
 from controllers.preshape.moves import MotionParams
 from controllers.preshape.palm_candidates import PalmPoseParams
+from fsm.closed_loop import ClosedLoopParams
 
 #: Values of ``TaskConfig.lateral_contacts``.
 LATERAL_CONTACTS = ("pinch", "sampled", "sampled-first")
@@ -185,6 +186,9 @@ class TaskConfig:
     motion: MotionParams = field(default_factory=MotionParams)
     #: Posture Control's palm poses and limits.
     palm_pose: PalmPoseParams = field(default_factory=PalmPoseParams)
+    #: The closed-loop corrections for a world that differs from the robot's model
+    #: (fsm.closed_loop; docs/robustness.md).
+    closed_loop: ClosedLoopParams = field(default_factory=ClosedLoopParams)
 
     def __post_init__(self) -> None:
         if self.lateral_contacts not in LATERAL_CONTACTS:

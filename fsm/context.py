@@ -19,6 +19,7 @@ from controllers.hand.finger_assignment import FingerContacts
 from controllers.hand.finger_geometry import PerceivedPrism
 from controllers.hand.grip import Grip
 from controllers.hand.reachability import HandReach
+from controllers.planning.belief_world import BeliefWorld
 from controllers.reach.coarse import CoarseReachPlan, ReachTarget
 from fsm.config import DEFAULT_CONFIG, TaskConfig
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
@@ -28,6 +29,7 @@ from hand_sim.world import DEFAULT_HAND, HAND_KINDS, World
 if TYPE_CHECKING:
     from controllers.hand.finger_samples import FingerSamples
     from controllers.preshape.palm_candidates import PalmPose
+    from fsm.user_protocol import ClickedBlock, UserChannel
     from vision import ObjectModel, Selection
 
 #: Controllers and approaches the command line accepts.
@@ -71,6 +73,9 @@ class EpisodeOptions:
     #: the hand on the arm: "servo" (models/hand.xml) or "tendon" (models/utah_mit_hand/)
     hand: str = DEFAULT_HAND
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
+    #: how the simulated world differs from the scene (``--perturb NAME[=SCALE],...`` or
+    #: ``none``; hand_sim.perturb); None: the scene file's ``[perturb]`` table, if any
+    perturb: str | None = None
 
 
 @dataclass
@@ -127,6 +132,11 @@ class CycleRecord:
     squeeze_reserve: float | None = None
     lift_height: float | None = None  #: m, block rise during the lift
     lift_slip: float | None = None  #: m, palm rise minus block rise
+    #: N, the load the wrist measured after the lift (sensed: the block's weight)
+    lift_weight: float | None = None
+    #: the overhead camera's calibration corrected against the table at this cycle's look
+    #: (vision.calibration): {"shift_mm", "turn_deg"}; None when it had not drifted
+    camera_recalibrated: dict[str, float] | None = None
     #: mm each fingertip (ff, mf, rf, th) moved in the palm's frame during the lift (sensed)
     lift_tip_motion_mm: list[float] | None = None
     #: deg, the block's tilt at the top of the lift, for judging only (not sensed)
@@ -149,10 +159,16 @@ class CycleRecord:
 
 @dataclass
 class Episode:
-    """The running episode: options, world, and what the states have learned so far."""
+    """The running episode: options, world, and what the states have learned so far.
+
+    ``world`` is the robot's view of the world (a
+    :class:`~controllers.planning.belief_world.BeliefWorld` over the simulated world): the
+    nominal robot, the blocks the camera saw, the sensors' readings; every state reads and
+    commands it. ``truth``, the simulated world itself, is for the judge and the summary's
+    judged fields only (:mod:`fsm.judge`)."""
 
     options: EpisodeOptions
-    world: World
+    world: BeliefWorld
     rng: np.random.Generator
     composer: Composer
     #: what the states tell the recording (fsm.recording.EpisodeRecorder; by default nothing)
@@ -184,6 +200,9 @@ class Episode:
     grip: Grip | None = None
     empty_hand_force: NDArray[np.float64] | None = None
     expected_load: float = 0.0  #: N, perceived volume x wood density x g
+    #: N, the block's weight as the wrist measured it after the lift (the nominal
+    #: ``expected_load`` with ``closed_loop.sensed_weight`` off)
+    held_weight: float = 0.0
     #: sampled finger postures for lateral reachability searches (drawn on first use)
     finger_samples: FingerSamples | None = None
     #: a top grasp's palm poses of the last palm-pose search and what they were computed from
@@ -224,6 +243,19 @@ class Episode:
     #: searched (once per synthesis), or None
     heights_searched: GraspSynthesis3D | None = None
     config: TaskConfig = DEFAULT_CONFIG  #: the task cycle's tuning (fsm.config)
+    #: interactive mode (fsm.interactive): the user who clicks the block and the place point
+    #: (fsm.user_protocol); None in a batch episode, which never waits for anyone
+    user: UserChannel | None = None
+    #: the click Wait for Block took for this cycle, until Select/Model takes its block
+    clicked: ClickedBlock | None = None
+    #: the simulated world ``world`` is the robot's view of, for the judge (None: ``world`` is
+    #: the simulated world itself)
+    truth: World | None = None
+
+    @property
+    def simulated(self) -> World:
+        """The simulated world, for the judge and the summary's judged fields only."""
+        return self.world if self.truth is None else self.truth
 
     @property
     def record(self) -> CycleRecord:

@@ -160,3 +160,43 @@ def block_state_text(state: dict[str, Any] | None, block: str | None) -> str:
         f"{block} {how} (judged: tilted {state['tilt_deg']:.0f} deg, "
         f"{state['moved_mm']:.0f} mm from where it stood)"
     )
+
+
+# --- the summary's judged fields: the simulation's truth, read by no state ---------------------
+def seen_against_truth(
+    world: World, block: str, centroid_xy: ArrayLike, area: float, edges: int
+) -> tuple[list[float], dict[str, float]]:
+    """Block ``block``'s true position now (the cycle's ``block_start``) and how far the model
+    the camera made of it (its top's ``centroid_xy``, ``area`` m^2, ``edges``) is from its true
+    footprint (``polygon_error``), from the simulated ``world``."""
+    truth = world.scene.block(block)
+    pos = world.block_pose(block)[0]
+    error = {
+        "centroid_mm": float(np.linalg.norm(np.asarray(centroid_xy)[:2] - pos[:2]) * 1000),
+        "area_percent": float(abs(area - truth.polygon.area) / truth.polygon.area * 100),
+        "edges": float(edges),
+        "true_edges": float(truth.polygon.n_edges),
+    }
+    return [float(v) for v in pos], error
+
+
+def other_blocks_now(world: World, block: str) -> dict[str, NDArray[np.float64]]:
+    """Every block but ``block`` where the simulated ``world`` has it now (for
+    :func:`judge`'s ``others_before``)."""
+    return {b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != block}
+
+
+def block_height_now(world: World, block: str) -> float:
+    """World z (m) of block ``block``'s centre in the simulated ``world``."""
+    return float(world.block_pose(block)[0][2])
+
+
+def block_clearance_now(world: World, block: str) -> float:
+    """How far (m) block ``block``'s bottom is above the table in the simulated ``world``."""
+    half = 0.5 * world.scene.block(block).height
+    return block_height_now(world, block) - half - world.scene.table.height
+
+
+def block_tilt_now(world: World, block: str) -> float:
+    """Tilt (deg) of block ``block`` in the simulated ``world``."""
+    return tilt_degrees(world.block_pose(block)[1])

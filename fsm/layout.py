@@ -3,7 +3,7 @@
 
 Seeds: :func:`episode_scene` (:mod:`hand_sim.scene_seed`, shared with ``vision`` and
 ``hand_sim.show``) draws a random scene from its seed and jitters a scene file's block poses for
-a seed > 0.
+a seed > 0; :func:`episode_perturbation` draws how the simulated world differs from it.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hand_sim.geometry import convex_polygon_distance
-from hand_sim.scene import TableSpec
+from hand_sim.perturb import Perturbation, PerturbSpec, for_episode
+from hand_sim.scene import Scene, TableSpec
 from hand_sim.scene_seed import episode_scene
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "SLOT_CLEARANCE",
     "SLOT_SEARCH_RADIUS",
     "SLOT_SPACING",
+    "episode_perturbation",
     "episode_scene",
     "free_slot",
     "place_is_free",
@@ -33,6 +35,14 @@ SLOT_CLEARANCE = 0.03
 #: there at all (closer than the scenes' smallest block gap to another block).
 ASKED_CLEARANCE = 0.005
 SLOT_SEARCH_RADIUS = 0.35
+
+
+def episode_perturbation(perturb: str | None, seed: int, scene: Scene) -> Perturbation | None:
+    """How an episode's simulated world differs from ``scene`` (:mod:`hand_sim.perturb`):
+    ``perturb`` (``--perturb NAME[=SCALE],...`` or ``none``) or, when None, the scene file's
+    ``[perturb]`` table, drawn from the episode's ``seed``; None when nothing is perturbed."""
+    spec = scene.perturb if perturb is None else PerturbSpec.parse(perturb)
+    return for_episode(spec, seed, scene.block_names)
 
 
 def place_is_free(

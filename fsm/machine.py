@@ -1,12 +1,14 @@
 """The finite state machine of Figure 14: it owns the loop, the clock and the recorder.
 
-:func:`run_episode` builds the world, then enters states one after another through the handlers
-of :mod:`fsm.handlers`, checking every hand-over against :data:`fsm.states.TRANSITIONS` and every
-state's simulated time against its budget. A failure of any kind (a named reason, an unstable
-simulation, a budget overrun, Ctrl-C) ends the episode in ``Failed`` with its reason; the summary
-and the recording are written in every case. An exception no state names (a bug) is the last
-resort ``internal error``, with the exception's one line as the detail and its traceback in the
-summary; warnings (NumPy's among them) are kept in the summary, not printed.
+:func:`run_episode` builds the world (:func:`episode_world`), then :func:`run_cycles` enters
+states one after another through the handlers of :mod:`fsm.handlers`, checking every hand-over
+against :data:`fsm.states.TRANSITIONS` and every state's simulated time against its budget. A
+failure of any kind (a named reason, an unstable simulation, a budget overrun, Ctrl-C) ends the
+episode in ``Failed`` with its reason; the summary and the recording are written in every case.
+An exception no state names (a bug) is the last resort ``internal error``, with the exception's
+one line as the detail and its traceback in the summary; warnings (NumPy's among them) are kept
+in the summary, not printed. The interactive mode (:mod:`fsm.interactive`) builds the world once
+and runs :func:`run_cycles` once per cycle on it, each cycle with its own recording and summary.
 """
 
 from __future__ import annotations
@@ -19,21 +21,25 @@ import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from controllers.errors import ReachError
 from controllers.grasp.registry import make_composer
+from controllers.planning.belief_world import BeliefWorld
 from fsm.config import DEFAULT_CONFIG
 from fsm.context import Episode, EpisodeOptions, out_paths
 from fsm.handlers import HANDLERS, TaskFailedError
 from fsm.judge import block_at_failure, block_state_text
-from fsm.layout import episode_scene
+from fsm.layout import episode_perturbation, episode_scene
 from fsm.recorder_protocol import NullRecorder, TaskRecorder
 from fsm.states import TRANSITIONS, Failure, State, allowed
 from hand_sim.errors import SimulationError
 from hand_sim.world import World
+
+if TYPE_CHECKING:
+    from hand_sim.perturb import Perturbation
 
 #: Whole-episode budget (simulated seconds) per cycle.
 CYCLE_BUDGET = 150.0
@@ -74,6 +80,9 @@ class EpisodeResult:
     warnings: list[str] = field(default_factory=list)
     #: the traceback of an ``internal error`` (None otherwise)
     traceback: str | None = None
+    #: how the simulated world differed from the scene (hand_sim.perturb: what was asked and
+    #: what was drawn); None when it did not
+    perturbation: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)
@@ -193,38 +202,90 @@ def run_episode(
     episode (default :class:`fsm.recording.EpisodeRecorder`)."""
     wall0 = time.perf_counter()
     rrd_path, summary_path = out_paths(options.out)
-    scene = episode_scene(options.scene, options.seed, options.blocks)
-    world = World.build(scene, hand=options.hand)
-    models = {"model_dir": options.models} if options.models is not None else {}
-    composer = make_composer(options.controller, **models)
-    rng = np.random.default_rng(options.seed)
-    recorder: TaskRecorder = NullRecorder()
+    world, perturbation = episode_world(options)
+    ep = new_episode(options, world)
     if options.record:
         if recorder_factory is None:
             from fsm.recording import EpisodeRecorder
 
             recorder_factory = EpisodeRecorder
-        recorder = recorder_factory(rrd_path, world)
-    ep = Episode(options, world, rng, composer, recorder, config=options.config)
-    result = EpisodeResult(
+        ep.recorder = recorder_factory(rrd_path, world)
+    result = new_result(options, world, rrd_path if options.record else None, perturbation)
+    return run_cycles(ep, result, summary_path, announce=announce, wall0=wall0)
+
+
+def episode_world(options: EpisodeOptions) -> tuple[World, Perturbation | None]:
+    """The world an episode runs in: the scene ``options`` name (its seed's layout), built with
+    the hand asked for and the perturbation drawn for it (:func:`fsm.layout.episode_perturbation`;
+    None: the nominal world)."""
+    scene = episode_scene(options.scene, options.seed, options.blocks)
+    perturbation = episode_perturbation(options.perturb, options.seed, scene)
+    return World.build(scene, hand=options.hand, perturbation=perturbation), perturbation
+
+
+def new_episode(options: EpisodeOptions, world: World) -> Episode:
+    """An episode of ``options`` on ``world``: its grasp controller and random generator, and no
+    recorder yet (:class:`~fsm.recorder_protocol.NullRecorder`; set ``ep.recorder``). The
+    states work on the robot's view of ``world`` (``ep.world``, a
+    :class:`~controllers.planning.belief_world.BeliefWorld`); ``ep.truth`` is ``world``."""
+    models = {"model_dir": options.models} if options.models is not None else {}
+    composer = make_composer(options.controller, **models)
+    rng = np.random.default_rng(options.seed)
+    belief = BeliefWorld.over(world)
+    return Episode(
+        options, belief, rng, composer, NullRecorder(), config=options.config, truth=world
+    )
+
+
+def new_result(
+    options: EpisodeOptions,
+    world: World,
+    rrd: Path | None,
+    perturbation: Perturbation | None,
+) -> EpisodeResult:
+    """The result of an episode (or of one interactive cycle) before it runs; ``rrd``: its
+    recording, None when it is not recorded."""
+    return EpisodeResult(
         success=False,
         failure=None,
         failure_detail="",
         options=options_json(options),
-        scene=scene.name,
-        rrd=str(rrd_path) if options.record else None,
+        scene=world.scene.name,
+        rrd=None if rrd is None else str(rrd),
+        perturbation=None if perturbation is None else perturbation.to_json(),
     )
+
+
+def run_cycles(
+    ep: Episode,
+    result: EpisodeResult,
+    summary_path: Path,
+    *,
+    announce: Callable[[str], None] | None = None,
+    wall0: float | None = None,
+    start: State = State.SELECT_MODEL,
+    pause_at: State | None = None,
+) -> EpisodeResult:
+    """Run the machine on ``ep`` from ``start`` until Done or Failed or, with ``pause_at``, until
+    it hands over to that state again (an interactive cycle ends where the machine goes back to
+    Wait for Block); fill ``result`` with what the cycles begun here did, close ``ep.recorder``
+    and write ``summary_path``, also when it fails or is interrupted (Ctrl-C is raised again).
+    The world and the episode's context stay as the machine left them, for the next call.
+    ``wall0``: the wall clock (``time.perf_counter``) the announced times count from."""
+    wall0 = time.perf_counter() if wall0 is None else wall0
+    world, recorder = ep.world, ep.recorder
+    first = len(ep.cycles)  # cycle records begun before this call are not this result's
     clock = Clock(world, recorder)
     world.on_step = clock
-    state = State.SELECT_MODEL
+    state = start
     caught: list[warnings.WarningMessage] = []
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
-            state = _loop(ep, result, clock, announce, wall0)
+            state = _loop(ep, result, clock, announce, wall0, start, pause_at, first)
     except KeyboardInterrupt:
         result.failure, result.failure_detail = Failure.INTERRUPTED.value, "Ctrl-C"
-        if ep.cycles:
+        if len(ep.cycles) > first:
             ep.record.failure = Failure.INTERRUPTED.value
             _judge_failed_cycle(ep)
         raise
@@ -234,12 +295,12 @@ def run_episode(
         result.traceback = "".join(traceback.format_exception(e))
     finally:
         world.on_step = None
-        picked = [c for c in ep.cycles if c.block is not None]
+        picked = [c for c in ep.cycles[first:] if c.block is not None]
         result.success = result.failure is None and bool(picked) and all(c.success for c in picked)
         if not result.success and result.failure is None:  # never a failure without a reason
             result.failure = Failure.INTERNAL_ERROR.value
             result.failure_detail = f"the machine stopped in {state.value} without a reason"
-        result.cycles = [_jsonable(asdict(c)) for c in ep.cycles if c.block is not None]
+        result.cycles = [_jsonable(asdict(c)) for c in picked]
         result.sim_time = world.time
         result.wall_time = time.perf_counter() - wall0
         result.warnings = _warning_lines(caught)
@@ -265,7 +326,7 @@ def _judge_failed_cycle(ep: Episode) -> None:
     record = ep.record
     if record.block is None or record.block_start is None:
         return
-    state = block_at_failure(ep.world, record.block, record.block_start)
+    state = block_at_failure(ep.simulated, record.block, record.block_start)
     if np.isfinite([state["tilt_deg"], state["moved_mm"]]).all():  # not after a NaN in the physics
         record.block_at_failure = state
 
@@ -276,12 +337,20 @@ def _loop(
     clock: Clock,
     announce: Callable[[str], None] | None,
     wall0: float,
+    start: State = State.SELECT_MODEL,
+    pause_at: State | None = None,
+    first: int = 0,
 ) -> State:
-    """Enter states from Select/Model until Done or Failed; return the last. Any exception of
-    a state (but Ctrl-C) ends the episode in Failed with a named reason (:func:`_failure_for`)."""
+    """Enter states from ``start`` until Done or Failed, or until the machine hands over to
+    ``pause_at`` again; return the last. Any exception of a state (but Ctrl-C) ends the episode
+    in Failed with a named reason (:func:`_failure_for`); ``first``: the index of the first cycle
+    record begun in this run of the loop (a failure is noted on the current cycle's record only
+    when it is one of these)."""
     world, recorder = ep.world, ep.recorder
-    state = State.SELECT_MODEL
+    state = start
     while state not in (State.DONE, State.FAILED):
+        if state is pause_at and result.visits:
+            break
         visit = Visit(state.value, ep.cycle, world.time)
         result.visits.append(visit)
         clock.enter(state)
@@ -302,7 +371,7 @@ def _loop(
             result.failure, result.failure_detail = failure.value, detail
             if failure is Failure.INTERNAL_ERROR:
                 result.traceback = "".join(traceback.format_exception(e))
-            if ep.cycles:
+            if len(ep.cycles) > first:
                 ep.record.failure, ep.record.failure_detail = failure.value, detail
                 _judge_failed_cycle(ep)
         visit.sim_seconds = world.time - visit.sim_start

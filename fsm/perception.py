@@ -4,6 +4,7 @@ episode, the other blocks' footprints, and the place point of the cycle."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -12,6 +13,7 @@ from numpy.typing import NDArray
 
 from controllers.hand.finger_geometry import PerceivedPrism
 from controllers.planning.belief import planning_model
+from controllers.planning.belief_world import BeliefWorld, modelled_block, outline_block
 from controllers.preshape.palm_candidates import robot_base_xy
 from controllers.reach.coarse import ReachTarget
 from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, Episode, EpisodeOptions
@@ -19,23 +21,128 @@ from fsm.layout import ASKED_CLEARANCE, free_slot, place_is_free
 from fsm.recorder_protocol import VisionView
 from fsm.states import Failure, TaskFailedError
 from hand_sim.geometry import point_in_convex_polygon
+from hand_sim.scene_spec import BlockSpec
 from hand_sim.world import World
-from vision import ObjectModel, Observation, Selection, VisionError, analyze, overhead_camera
+from vision import ObjectModel, Selection, VisionError, analyze
+
+#: Name prefix of a seen block without a label (``unlabelled_3``: block 3 of the view).
+UNLABELLED = "unlabelled_"
 
 
-def perceive(world: World) -> Selection:
-    """Render the overhead view and segment it (the scene names label the regions, as a
-    simulator's object labels would; the shapes and poses come from the image)."""
-    with overhead_camera(world) as cam:
-        obs = Observation.capture(cam)
-    names = {b.name: world.block_pose(b.name)[0][:2] for b in world.scene.blocks}
-    return analyze(obs, names)
+def perceive(
+    world: BeliefWorld,
+    on_image: Callable[[NDArray[np.uint8]], None] | None = None,
+    *,
+    check_camera: bool = True,
+) -> Selection:
+    """Look through the overhead camera (:meth:`BeliefWorld.look`: the simulated camera's image,
+    the calibrated camera's geometry) and segment the view. The blocks are named after the
+    robot's labels (:attr:`BeliefWorld.labels`: the task's layout, then where it last saw or put
+    each block), the nearest within 3 cm, as an operator's labels would; the shapes and poses
+    come from the image. ``on_image`` receives the image as soon as it is taken, before the
+    segmentation (the interactive page shows it). ``check_camera``: the camera's calibration is
+    checked against the table in the same view first (``BeliefWorld.look``)."""
+    obs = world.look(check=check_camera)
+    if on_image is not None:
+        on_image(obs.rgb)
+    return analyze(obs, world.labels)
+
+
+def seen_blocks(
+    world: BeliefWorld, selection: Selection, name: str, model: ObjectModel
+) -> list[BlockSpec]:
+    """The blocks the view ``selection`` shows on the table, as the robot's belief holds them
+    (:meth:`BeliefWorld.see`): the picked one (``name``) as ``model``, every other modelled one
+    as its polygon, one the vision cannot model as the hull of its top face's pixels grown by
+    :data:`OBSTACLE_MARGIN`; each extruded from the table to its seen top. A region inside the
+    picked block's outline (a fragment of its own view) is left out, and so is one that is a
+    modelled block's side face (:func:`side_face`)."""
+    table_z = world.scene.table.height
+    out = [modelled_block(name, model.polygon, model.centroid[:2], model.yaw, model.height)]
+    index = selection.index_of_model(model)
+    if index is None:
+        index = selection.index_near(model.centroid)
+    others, prisms = _others_modelled(world, selection, index, model)
+    for i, seen in others.items():
+        label = selection.names[i] or f"{UNLABELLED}{i}"
+        if isinstance(seen, ObjectModel):
+            xy = seen.centroid[:2]
+            out.append(modelled_block(label, seen.polygon, xy, seen.yaw, seen.height))
+        elif not side_face(selection, i, prisms):
+            outline = obstacle_footprint(selection, i)
+            if outline is not None:
+                out.append(outline_block(label, outline, selection.blocks[i].z_top - table_z))
+    return out
+
+
+def _others_modelled(
+    world: World, selection: Selection, index: int, picked: ObjectModel
+) -> tuple[dict[int, ObjectModel | VisionError], list[tuple[NDArray[np.float64], float]]]:
+    """The regions of ``selection`` on the table other than ``index`` (the picked block, modelled
+    as ``picked``) and outside its outline, in the view's order, each with its model or why the
+    vision refused it; and the prisms (world footprint, top z) of the picked and the modelled
+    blocks."""
+    centres = selection.block_centres()
+    others: dict[int, ObjectModel | VisionError] = {}
+    prisms = [(picked.world_vertices, float(picked.centroid[2]))]
+    for i in range(len(selection.blocks)):
+        if i == index or not on_table(world, selection, i):
+            continue
+        if point_in_convex_polygon(centres[i][:2], picked.world_vertices):
+            continue  # a fragment of the picked block's own view
+        try:
+            seen = others[i] = selection.model(i)
+            prisms.append((seen.world_vertices, float(seen.centroid[2])))
+        except VisionError as e:
+            others[i] = e
+    return others, prisms
+
+
+#: A region the vision cannot model whose points (from the depth image) lie within this
+#: distance (m) of a modelled block's prism is that block's side face, seen in perspective at
+#: the image's edge, not a block of its own: three times the depth's noise under the
+#: ``sensing`` perturbation (1 mm), over five pixels on the table. Set before any run:
+#: docs/findings.md, "A side face is its block".
+SIDE_FACE_TOLERANCE = 0.003
+#: ...for at least this share of the region's points.
+SIDE_FACE_SHARE = 0.9
+
+
+def side_face(
+    selection: Selection, index: int, prisms: list[tuple[NDArray[np.float64], float]]
+) -> bool:
+    """Whether region ``index`` of ``selection`` is a side face of one of ``prisms`` (world
+    footprint vertices (k, 2), CCW, and top z; each standing on the table): its pixels' points,
+    from the depth image, lie within :data:`SIDE_FACE_TOLERANCE` of the prism, at least
+    :data:`SIDE_FACE_SHARE` of them."""
+    v, u = np.nonzero(selection.blocks[index].top_mask)
+    if u.size == 0:
+        return False
+    obs = selection.observation
+    g = obs.geometry
+    depth = obs.depth[v, u].astype(float)
+    points = g.position + g.rays(np.column_stack([u, v]).astype(float)) * depth[:, None]
+    points = points[np.isfinite(points).all(axis=1)]
+    if len(points) == 0:
+        return False
+    for vertices, top in prisms:
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        normals = np.column_stack([edges[:, 1], -edges[:, 0]])  # outward of a CCW polygon
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        outside = np.einsum("nkj,kj->nk", points[:, None, :2] - vertices[None], normals).max(1)
+        near = (outside <= SIDE_FACE_TOLERANCE) & (points[:, 2] <= top + SIDE_FACE_TOLERANCE)
+        if near.mean() >= SIDE_FACE_SHARE:
+            return True
+    return False
 
 
 def adopt_model(ep: Episode, name: str, model: ObjectModel) -> None:
-    """Take ``model`` as the picked block's (named ``name`` in the scene): the reach target, the
-    perceived prism the fingers keep clear of, and the planning model the arm's paths avoid."""
+    """Take ``model`` as the picked block's (named ``name``): the robot's belief holds the
+    blocks of the view it came from (:func:`seen_blocks`), the reach target, the perceived prism
+    the fingers keep clear of, and the planning model the arm's paths avoid (built from that
+    belief: every obstacle is a block the camera saw, never a simulated body)."""
     world = ep.world
+    world.see(seen_blocks(world, ep.selection, name, model))
     ep.model = model
     ep.target = ReachTarget.from_object_model(model)
     ep.prism = PerceivedPrism.of(ep.target, world.scene.table.height)
@@ -169,23 +276,20 @@ def obstacle_footprint(
 
 
 def other_footprints(
-    world: World, selection: Selection, index: int, picked: NDArray[np.float64]
+    world: World, selection: Selection, index: int, picked: ObjectModel
 ) -> tuple[list[NDArray[np.float64]], list[str]]:
-    """World footprints of the blocks of ``selection`` on the table other than ``index`` (whose
-    perceived world vertices are ``picked``), as perceived, and why each block that could not be
-    modelled was not: such a block counts as an obstacle by :func:`obstacle_footprint`."""
+    """World footprints of the blocks of ``selection`` on the table other than ``index`` (the
+    picked block, modelled as ``picked``), as perceived, and why each block that could not be
+    modelled was not: such a block counts as an obstacle by :func:`obstacle_footprint`, unless
+    it is a modelled block's side face (:func:`side_face`)."""
     out = []
     unmodelled = []
-    centres = selection.block_centres()[:, :2]
-    for i in range(len(selection.blocks)):
-        if i == index or not on_table(world, selection, i):
-            continue
-        if point_in_convex_polygon(centres[i], picked):
-            continue  # a fragment of the picked block's own view
-        try:
-            out.append(selection.model(i).world_vertices)
-        except VisionError as e:
-            unmodelled.append(str(e))
+    others, prisms = _others_modelled(world, selection, index, picked)
+    for i, seen in others.items():
+        if isinstance(seen, ObjectModel):
+            out.append(seen.world_vertices)
+        elif not side_face(selection, i, prisms):
+            unmodelled.append(str(seen))
             footprint = obstacle_footprint(selection, i)
             if footprint is not None:
                 out.append(footprint)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import rerun as rr
@@ -112,7 +113,9 @@ class EpisodeRecorder(ClosesOnExit):
     """Records one task-cycle episode of ``world`` to ``path`` (``.rrd``); see the module
     docstring for what is logged where. Use as a context manager (or call :meth:`close`): the
     file is complete after close, also when the episode raises (the exception is logged as an
-    ERROR event first). A :class:`fsm.recorder_protocol.TaskRecorder`."""
+    ERROR event first). A :class:`fsm.recorder_protocol.TaskRecorder`. ``live``: a rerun sink the
+    recording streams to as well while the episode runs (:class:`hand_sim.recorder.Recorder`;
+    ``fsm.run --live``); the file is the same."""
 
     def __init__(
         self,
@@ -126,6 +129,7 @@ class EpisodeRecorder(ClosesOnExit):
         scalar_rate_hz: float = 50.0,
         contact_rate_hz: float = 10.0,
         jpeg_quality: int | None = None,
+        live: Any | None = None,
     ) -> None:
         if not world.with_robot:
             raise HandSimError("an episode recording needs a world with the arm and hand")
@@ -142,7 +146,8 @@ class EpisodeRecorder(ClosesOnExit):
         self._synthesis_time: float | None = None
         self._polygons: dict[str, rr.LineStrips3D] = {}
         kwargs = {} if jpeg_quality is None else {"jpeg_quality": jpeg_quality}
-        self._rec: Recorder | None = Recorder(self.path, world, **kwargs)
+        self._rec: Recorder | None = Recorder(self.path, world, live=live, **kwargs)
+        self._live_error = ""
         try:
             self.telemetry = WorldTelemetry(
                 self._rec,
@@ -440,6 +445,12 @@ class EpisodeRecorder(ClosesOnExit):
             finally:
                 rec, self._rec = self._rec, None
                 rec.close()
+                self._live_error = rec.live_error
+
+    @property
+    def live_error(self) -> str:
+        """Why the live stream stopped before the recording closed ("" when it did not)."""
+        return self._live_error
 
     def _exit(self, exc_type: type[BaseException] | None, exc: BaseException | None) -> None:
         """Leaving the ``with`` block on an exception logs it as an ERROR event and skips the

@@ -78,7 +78,8 @@ def _seen_again(ep: Episode) -> tuple[ObjectModel, float] | str:
     by where its top face is, not by name)."""
     old = ep.model
     try:
-        selection = ep.selection = perceive(ep.world)
+        check = ep.config.closed_loop.camera_check
+        selection = ep.selection = perceive(ep.world, check_camera=check)
         model = selection.model(selection.index_near(old.centroid))
     except VisionError as e:
         return f"the overhead camera does not model it again ({e})"
@@ -100,6 +101,7 @@ def release_and_look(ep: Episode, reason: str, failure: Failure) -> tuple[str, f
     world = ep.world
     if ep.grip is not None:
         release(world, ep.grip)
+    world.let_go()
     retreat(world, CollisionChecker(world), clear_top=top_to_clear(ep))
     parked = park_arm(ep)
     seen = _seen_again(ep)

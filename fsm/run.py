@@ -4,12 +4,15 @@ Exit status: 0 every asked block delivered (at the place point asked for, or, wi
 ``--place-fallback nearest``, at the nearest free slot, reported as delivered elsewhere), 1 the
 task failed (the named reason is printed; an exception no state names is ``internal error``), 2
 bad input (one line on stderr saying what is wrong), 130 interrupted (Ctrl-C).
-``DIR/summary.json`` and ``DIR/episode.rrd`` are written in every case but bad input.
+``DIR/summary.json`` and ``DIR/episode.rrd`` are written in every case but bad input;
+``--live`` / ``--connect`` stream the recording to the rerun viewer as well while the episode runs
+(:mod:`fsm.live`).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from collections.abc import Sequence
 from dataclasses import replace
@@ -30,10 +33,12 @@ from fsm.context import (
     out_paths,
 )
 from fsm.layout import ASKED_CLEARANCE, episode_scene, place_is_free
+from fsm.live import DEFAULT_LIVE_PORT, LiveStream, connect_stream, serve_stream
 from hand_sim.clitools import (
     ERRORS,
     ArgumentParser,
     CommandLineError,
+    add_perturb_argument,
     first_paragraph,
     integer,
     numbers,
@@ -52,6 +57,29 @@ PROG = "python -m fsm.run"
 PLACE_REACH = (0.35, 0.95)
 #: Most blocks ``--cycles`` may ask for (``all`` clears the table whatever their number).
 MAX_CYCLES = 50
+#: ``--live`` serves the stream on the loopback address only.
+LIVE_HOST = "127.0.0.1"
+
+
+def add_scene(ap: argparse.ArgumentParser) -> None:
+    """``--scene``, ``--seed`` and ``--blocks``: the table an episode runs on."""
+    ap.add_argument(
+        "--scene",
+        default="clutter3",
+        help=f"scene name ({', '.join(scene_names())}) or a .toml path",
+    )
+    ap.add_argument(
+        "--seed",
+        type=seed,
+        default=0,
+        help="draws a random scene; jitters a scene file's layout when > 0; seeds the noise",
+    )
+    ap.add_argument(
+        "--blocks",
+        type=integer(1, 12),
+        default=None,
+        help="number of blocks of --scene random (default from scenes/random.toml)",
+    )
 
 
 def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
@@ -161,23 +189,7 @@ pixel = numbers(2, "U,V")
 
 def parser() -> ArgumentParser:
     ap = ArgumentParser(prog=PROG, description=first_paragraph(__doc__))
-    ap.add_argument(
-        "--scene",
-        default="clutter3",
-        help=f"scene name ({', '.join(scene_names())}) or a .toml path",
-    )
-    ap.add_argument(
-        "--seed",
-        type=seed,
-        default=0,
-        help="draws a random scene; jitters a scene file's layout when > 0; seeds the noise",
-    )
-    ap.add_argument(
-        "--blocks",
-        type=integer(1, 12),
-        default=None,
-        help="number of blocks of --scene random (default from scenes/random.toml)",
-    )
+    add_scene(ap)
     pick = ap.add_mutually_exclusive_group()
     pick.add_argument(
         "--pick", default=None, help="name of the block to pick first (default: the scene's target)"
@@ -222,8 +234,49 @@ def parser() -> ArgumentParser:
     )
     add_hand(ap)
     add_lateral_gate(ap)
+    add_perturb_argument(ap)
     ap.add_argument("--no-record", action="store_true", help="skip the .rrd recording (faster)")
+    add_live(ap)
     return ap
+
+
+def add_live(ap: argparse.ArgumentParser) -> None:
+    """``--live [PORT]`` and ``--connect URL``: the recording streamed to the rerun viewer while
+    the episode runs (:mod:`fsm.live`)."""
+    live = ap.add_mutually_exclusive_group()
+    live.add_argument(
+        "--live",
+        nargs="?",
+        const=DEFAULT_LIVE_PORT,
+        default=None,
+        type=integer(0, 65535),
+        metavar="PORT",
+        help=f"serve the recording live on {LIVE_HOST}:PORT while the episode runs (PORT "
+        f"{DEFAULT_LIVE_PORT} when omitted, 0 any free port) and print the `rerun --connect "
+        "URL` line that opens it; the .rrd is written the same",
+    )
+    live.add_argument(
+        "--connect",
+        default=None,
+        metavar="URL",
+        help="stream the recording live to a rerun viewer already running (its URL, e.g. "
+        "rerun+http://127.0.0.1:9876/proxy, or its port); the .rrd is written the same",
+    )
+
+
+def live_from_args(argv: Sequence[str] | None) -> LiveStream | None:
+    """The live stream ``--live`` or ``--connect`` asks for, checked before any work (the port
+    free, the viewer listening), or None. It is not an episode option: nothing simulated
+    changes, and the recording is the same."""
+    args = parser().parse_args(argv)
+    if args.live is None and args.connect is None:
+        return None
+    flag = "--live" if args.live is not None else "--connect"
+    if args.no_record:
+        raise CommandLineError(flag, "streams the recording: it cannot go with --no-record")
+    if args.live is not None:
+        return serve_stream(LIVE_HOST, args.live, flag)
+    return connect_stream(args.connect, flag)
 
 
 def _check_place(
@@ -328,17 +381,28 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
             lateral_gate=args.lateral_gate,
             lateral_gate_rule=args.lateral_gate_rule,
         ),
+        perturb=args.perturb,
     )
 
 
 def run(argv: Sequence[str] | None) -> int:
+    live = live_from_args(argv)
     options = options_from_args(argv)
     from fsm.judge import block_state_text
     from fsm.machine import run_episode
 
     rrd, summary = out_paths(options.out)
+    factory = None
+    if live is not None:
+        from fsm.recording import EpisodeRecorder
+
+        factory = functools.partial(EpisodeRecorder, live=live.sink())
+        how = "served" if live.serve else "sent to the viewer at"
+        print(f"live: the recording is {how} {live.url}; open it with: {live.viewer_command}")
     with partial_results_in(options.out):
-        result = run_episode(options, announce=lambda line: print(line, flush=True))
+        result = run_episode(
+            options, announce=lambda line: print(line, flush=True), recorder_factory=factory
+        )
     if result.success:
         for c in result.cycles:
             j = c["judgement"]

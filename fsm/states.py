@@ -19,6 +19,10 @@ class State(Enum):
     WRENCH_CLOSURE = "Wrench Closure"
     GRASP_OBJECT = "Grasp Object"
     DELIVER = "Deliver"
+    #: interactive mode only (fsm.interactive, section 5.1): the user's click on a block before
+    #: Select/Model, and on the delivery point after Grasp Object; the world is frozen meanwhile
+    WAIT_FOR_BLOCK = "Wait for Block"
+    WAIT_FOR_PLACE = "Wait for Place"
     DONE = "Done"
     FAILED = "Failed"
 
@@ -61,10 +65,11 @@ class Step:
     reason: str
 
 
-#: Reasons any state can end with.
+#: Reasons any state can end with (interrupted: Ctrl-C, or the interactive page's stop).
 ANY_STATE_FAILURES = (
     Failure.SIMULATION_UNSTABLE,
     Failure.TIME_BUDGET_EXCEEDED,
+    Failure.INTERRUPTED,
     Failure.INTERNAL_ERROR,
 )
 #: Times Wrench Closure may send the machine back to Posture Control before giving up (the paper's
@@ -135,14 +140,16 @@ TRANSITIONS: dict[State, StateSpec] = {
             # closing and squeezing take 3-5 s; a miss adds the regrasp's repositioning (a
             # lateral one's release, retreat and park, fsm.recovery.look_again: up to ~12 s)
             30.0,
-            (State.DELIVER, State.FINE_REACH, State.COARSE_REACH),
+            # Wait for Place: interactive mode only (the user's delivery point)
+            (State.DELIVER, State.FINE_REACH, State.COARSE_REACH, State.WAIT_FOR_PLACE),
             (Failure.FINGERS_CANNOT_REACH,),
         ),
         StateSpec(
             State.DELIVER,
             "all four pads feel the block at the grip force",
             60.0,
-            (State.SELECT_MODEL, State.COARSE_REACH, State.DONE),
+            # Wait for Block: interactive mode only (the next cycle waits for the user's click)
+            (State.SELECT_MODEL, State.COARSE_REACH, State.DONE, State.WAIT_FOR_BLOCK),
             (
                 Failure.SLIPPED_DURING_LIFT,
                 Failure.DROPPED_IN_TRANSPORT,
@@ -150,6 +157,23 @@ TRANSITIONS: dict[State, StateSpec] = {
                 Failure.SET_DOWN_NOT_SENSED,
                 Failure.NOT_PLACED,
             ),
+        ),
+        StateSpec(
+            State.WAIT_FOR_BLOCK,
+            "interactive mode; the arm is parked clear of the table (after a failed cycle the "
+            "hand first lets go and the arm parks)",
+            # the wait itself takes no simulated time (the world is frozen); the park after a
+            # failed cycle takes up to ~15 s
+            30.0,
+            (State.SELECT_MODEL, State.DONE),
+            (),
+        ),
+        StateSpec(
+            State.WAIT_FOR_PLACE,
+            "interactive mode; the hand holds the block at the grip force, on the table",
+            0.0,
+            (State.DELIVER,),
+            (),
         ),
     )
 }

@@ -15,6 +15,7 @@ from dm_control import mjcf
 from hand_sim import robot
 from hand_sim.blocks import add_block
 from hand_sim.errors import SimulationError
+from hand_sim.perturb import Perturbation
 from hand_sim.resources import models_dir
 from hand_sim.scene_spec import Scene, TableSpec
 from hand_sim.tendon_drive import SERVO_KP
@@ -89,10 +90,12 @@ def build_mjcf(
     with_robot: bool = True,
     models_dir: Path = MODELS_DIR,
     hand: str = DEFAULT_HAND,
+    perturbation: Perturbation | None = None,
 ) -> tuple[mjcf.RootElement, dict[str, float]]:
     """The root MJCF element of ``scene`` and the arm's ``home`` posture (joint name -> rad; empty
     without the robot). The arm stands at :data:`ARM_BASE_POSITION`, the ``hand`` (one of
-    :data:`HAND_KINDS`) on its ``attachment_site``, the blocks on the table top."""
+    :data:`HAND_KINDS`) on its ``attachment_site``, the blocks on the table top; ``perturbation``
+    moves the world away from that nominal model (:mod:`hand_sim.perturb_model`)."""
     if hand not in HAND_XMLS:
         raise SimulationError(f"unknown hand {hand!r}; valid: {', '.join(HAND_KINDS)}")
     root = _new_root(scene.name)
@@ -101,6 +104,12 @@ def build_mjcf(
     home = _add_robot(root, models_dir, hand) if with_robot else {}
     for block in scene.blocks:
         add_block(root, block, scene.table.height)
+    if perturbation is not None:
+        from hand_sim.perturb_model import apply_to_mjcf
+
+        apply_to_mjcf(
+            root, perturbation, with_robot=with_robot, hand=hand, blocks=scene.block_names
+        )
     return root, home
 
 

@@ -43,6 +43,39 @@ def ensure_gl_backend() -> None:
         importlib.reload(gl_context)
 
 
+def focal_length(model: mujoco.MjModel, camera_id: int, height: int) -> float:
+    """Focal length (pixels) of camera ``camera_id`` of ``model`` in an image ``height`` pixels
+    high (MuJoCo's ``fovy`` is the vertical field of view)."""
+    fovy = math.radians(float(model.cam_fovy[camera_id]))
+    return 0.5 * height / math.tan(0.5 * fovy)
+
+
+def intrinsics(focal_px: float, width: int, height: int) -> NDArray[np.float64]:
+    """The 3x3 pinhole matrix K (pixels): square pixels, principal point at the image centre."""
+    f = focal_px
+    return np.array([[f, 0.0, 0.5 * width - 0.5], [0.0, f, 0.5 * height - 0.5], [0.0, 0.0, 1.0]])
+
+
+def camera_pose(data: mujoco.MjData, camera_id: int) -> NDArray[np.float64]:
+    """4x4 camera-to-world transform (OpenCV camera axes) of camera ``camera_id`` in ``data``'s
+    kinematics: the pose the renderer draws from, or, in a model the robot believes in, the
+    pose its calibration says."""
+    T = np.eye(4)
+    T[:3, :3] = data.cam_xmat[camera_id].reshape(3, 3) @ MUJOCO_TO_OPENCV
+    T[:3, 3] = data.cam_xpos[camera_id]
+    return T
+
+
+def close_renderer(renderer: mujoco.Renderer) -> None:
+    """Close ``renderer`` with its own GL context current: ``mujoco.Renderer.close`` frees its GL
+    objects in whatever context is current, and with another renderer's current it deletes that
+    renderer's framebuffers (the same object ids), which then draws garbage."""
+    context = getattr(renderer, "_gl_context", None)
+    if context is not None:
+        context.make_current()
+    renderer.close()
+
+
 class OverheadCamera(ClosesOnExit):
     """RGB, depth and segmentation images of the world's ``overhead`` camera, with its
     intrinsics ``K`` and pose, and conversions between pixels and world points."""
@@ -67,26 +100,18 @@ class OverheadCamera(ClosesOnExit):
         # the table fills the camera's whole view: without the skybox pass the images are the
         # same to the bit (tests/hand_sim/test_camera.py) and a 640x480 frame ~1 ms cheaper
         flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
-        fovy = math.radians(float(world.model.cam_fovy[self.camera_id]))
-        self.focal_px = 0.5 * height / math.tan(0.5 * fovy)
+        self.focal_px = focal_length(world.model, self.camera_id, height)
 
     # --- geometry --------------------------------------------------------------------------
     @property
     def intrinsics(self) -> NDArray[np.float64]:
         """The 3x3 pinhole matrix K (pixels): square pixels, principal point at the image centre."""
-        f = self.focal_px
-        return np.array(
-            [[f, 0.0, 0.5 * self.width - 0.5], [0.0, f, 0.5 * self.height - 0.5], [0.0, 0.0, 1.0]]
-        )
+        return intrinsics(self.focal_px, self.width, self.height)
 
     @property
     def pose(self) -> NDArray[np.float64]:
         """4x4 camera-to-world transform (OpenCV camera axes), from the current simulation state."""
-        d = self.world.data
-        T = np.eye(4)
-        T[:3, :3] = d.cam_xmat[self.camera_id].reshape(3, 3) @ MUJOCO_TO_OPENCV
-        T[:3, 3] = d.cam_xpos[self.camera_id]
-        return T
+        return camera_pose(self.world.data, self.camera_id)
 
     def world_to_pixel(self, xyz: ArrayLike) -> NDArray[np.float64]:
         """Pixel (u, v) of world points ``xyz`` (..., 3)."""
@@ -170,5 +195,5 @@ class OverheadCamera(ClosesOnExit):
     def close(self) -> None:
         """Release the renderer's GL context (call before exit or EGL complains)."""
         if self._renderer is not None:
-            self._renderer.close()
+            close_renderer(self._renderer)
             self._renderer = None

@@ -24,6 +24,7 @@ A command looks like this::
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from controllers.grasp.errors import GraspError
 from graspsim_base.cli import (
@@ -52,6 +53,7 @@ from graspsim_base.cli import (
 )
 from hand_sim.assembly import MAX_RENDER_HEIGHT, MAX_RENDER_WIDTH
 from hand_sim.errors import HandSimError
+from hand_sim.perturb import KINDS, MAX_SCALE, NAMES, NONE, WOES, PerturbError, PerturbSpec
 from hand_sim.random_scene import MAX_RANDOM_BLOCKS
 from hand_sim.scene import RANDOM_SCENE, Scene
 from hand_sim.scene_seed import episode_scene
@@ -100,6 +102,43 @@ def scene_from_arguments(args: argparse.Namespace) -> Scene:
     return episode_scene(args.scene, args.seed, args.blocks)
 
 
+def perturbation(kinds: tuple[str, ...] = KINDS) -> Callable[[str], str]:
+    """Argument type of ``--perturb NAME[=SCALE],...`` (:mod:`hand_sim.perturb`) allowing the
+    perturbations ``kinds`` (``woes`` only when all are allowed): the checked value, written as
+    :meth:`~hand_sim.perturb.PerturbSpec.text` writes it (``none`` when nothing is perturbed)."""
+    names = (*kinds, WOES) if set(kinds) == set(KINDS) else kinds
+    valid = f"valid: {', '.join(names)} (NAME or NAME=SCALE, SCALE 0..{MAX_SCALE:g}), or {NONE}"
+
+    def parse(text: str) -> str:
+        for part in text.split(","):
+            name = part.partition("=")[0].strip()
+            if name and name != NONE and name not in names:
+                where = "" if name not in NAMES else " for this command"
+                raise argparse.ArgumentTypeError(f"unknown perturbation {name!r}{where}; {valid}")
+        try:
+            return PerturbSpec.parse(text).text()
+        except PerturbError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    return parse
+
+
+def add_perturb_argument(parser: argparse.ArgumentParser, kinds: tuple[str, ...] = KINDS) -> None:
+    """``--perturb NAME[=SCALE],...`` (perturbations ``kinds`` and, when all are allowed,
+    ``woes``), default None: the scene file's ``[perturb]`` table."""
+    names = ", ".join((*kinds, WOES) if set(kinds) == set(KINDS) else kinds)
+    parser.add_argument(
+        "--perturb",
+        type=perturbation(kinds),
+        default=None,
+        metavar="NAME[=SCALE],...",
+        help=f"make the simulated world differ from what the robot believes (section 5.3's "
+        f"woes; docs/robustness.md), drawn from --seed: NAME one of {names}; SCALE "
+        f"0..{MAX_SCALE:g} multiplies its magnitudes (1 when left out); none: unperturbed "
+        "(default: a scene file's [perturb] table; random scenes are unperturbed)",
+    )
+
+
 def add_image_size_arguments(
     parser: argparse.ArgumentParser,
     what: str,
@@ -132,6 +171,7 @@ __all__ = [
     "Interrupted",
     "add_image_size_arguments",
     "add_json_argument",
+    "add_perturb_argument",
     "add_scene_arguments",
     "add_seed_argument",
     "add_workers_argument",
@@ -146,6 +186,7 @@ __all__ = [
     "out_dir",
     "out_file",
     "partial_results_in",
+    "perturbation",
     "prepare_dir",
     "prepare_file",
     "run_command",

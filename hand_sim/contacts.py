@@ -30,20 +30,6 @@ class RobotContact:
     distance: float  #: signed distance (m); negative = penetration
 
 
-def _robot_part(body_name: str) -> tuple[str, str] | None:
-    """(finger, link) of a robot body name, or None for a body that is not the robot's."""
-    if body_name.startswith(robot.HAND_PREFIX):
-        local = body_name[len(robot.HAND_PREFIX) :]
-        for finger in robot.FINGERS:
-            for link in robot.FINGER_LINKS:
-                if local == f"{finger}_{link}":
-                    return finger, link
-        return "palm", local
-    if body_name.startswith(robot.ARM_PREFIX):
-        return "arm", body_name[len(robot.ARM_PREFIX) :]
-    return None
-
-
 def robot_contacts(world: World, body: int) -> tuple[RobotContact, ...]:
     """Every contact between a robot geom and body ``body`` (a MuJoCo body id, e.g.
     ``world.block_body_id(name)``) in the world's current state."""
@@ -56,7 +42,7 @@ def robot_contacts(world: World, body: int) -> tuple[RobotContact, ...]:
         if body not in (b1, b2) or b1 == b2:
             continue
         other_geom, other_body = (c.geom2, b2) if b1 == body else (c.geom1, b1)
-        part = _robot_part(m.body(other_body).name)
+        part = robot.robot_part(m.body(other_body).name)
         if part is None:
             continue
         mujoco.mj_contactForce(m, d, i, wrench)
@@ -88,16 +74,5 @@ def finger_link_forces(world: World, body: int) -> dict[str, float]:
 
 def pad_object_forces(world: World) -> NDArray[np.float64]:
     """(4,) normal force (N) between each fingertip pad (ff, mf, rf, th) and anything that is not
-    the robot: what a touch guard should react to. (The touch sensors also feel a fingertip
-    pressing another finger.)"""
-    m, d = world.model, world.data
-    pads = {m.geom(robot.hand_name(f"{f}_pad")).id: i for i, f in enumerate(robot.FINGERS)}
-    out = np.zeros(len(robot.FINGERS))
-    wrench = np.zeros(6)
-    for i in range(d.ncon):
-        c = d.contact[i]
-        for pad, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
-            if pad in pads and _robot_part(m.body(m.geom_bodyid[other]).name) is None:
-                mujoco.mj_contactForce(m, d, i, wrench)
-                out[pads[pad]] += abs(wrench[0])
-    return out
+    the robot: what a touch guard should react to (:meth:`hand_sim.world.World.pad_forces`)."""
+    return world.pad_forces()

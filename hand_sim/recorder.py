@@ -130,10 +130,20 @@ class Recorder(ClosesOnExit):
     logged as an ERROR event and then propagates).
 
     The episode is written to a hidden temporary file beside ``path``, renamed to ``path`` when
-    the recorder closes: ``path`` only ever holds a complete, readable recording."""
+    the recorder closes: ``path`` only ever holds a complete, readable recording.
+
+    ``live``: a rerun sink the same stream goes to as well, as it is logged (``rr.GrpcSink`` to
+    a running viewer, ``rr.GrpcServerSink`` serving one); the file is written the same either
+    way, and a viewer that goes away does not cost the file (:attr:`live_error` says why the
+    stream stopped)."""
 
     def __init__(
-        self, path: str | Path, world: World | None = None, *, jpeg_quality: int = JPEG_QUALITY
+        self,
+        path: str | Path,
+        world: World | None = None,
+        *,
+        jpeg_quality: int = JPEG_QUALITY,
+        live: Any | None = None,
     ) -> None:
         self.path = Path(path)
         if self.path.suffix != ".rrd":
@@ -147,7 +157,13 @@ class Recorder(ClosesOnExit):
         # simulated time is the recording's time: no wall-clock ``log_time`` timeline (it would
         # make two runs of the same episode differ)
         self._rec.set_log_time_enabled(False)
-        self._rec.save(str(self._partial))
+        self._live = live
+        #: why the live stream stopped (its sink's error at close), or "" (none, or no error)
+        self.live_error = ""
+        if live is None:
+            self._rec.save(str(self._partial))
+        else:
+            self._rec.set_sinks(rr.FileSink(str(self._partial)), live)
         self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._geometry_for: int | None = None
         self._now: tuple[int, float] | None = None  # (step, sim_time) of the last set_time
@@ -343,7 +359,12 @@ class Recorder(ClosesOnExit):
             finally:
                 rec, self._rec = self._rec, None
                 try:
-                    rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                    try:
+                        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                    except RuntimeError as e:  # only a live sink fails so (a viewer gone)
+                        if self._live is None:
+                            raise
+                        self.live_error = str(e)
                     rec.disconnect()
                 finally:
                     if self._partial.exists():

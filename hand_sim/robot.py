@@ -113,3 +113,19 @@ def arm_qpos_addresses(model: mujoco.MjModel) -> NDArray[np.int64]:
 def hand_qpos_addresses(model: mujoco.MjModel) -> NDArray[np.int64]:
     """Addresses in ``qpos`` of the hand's joints, :data:`HAND_JOINTS` order."""
     return qpos_addresses(model, HAND_JOINTS)
+
+
+def robot_part(body_name: str) -> tuple[str, str] | None:
+    """(finger, link) of a body name of the compiled world: ``("ff", "distal")``...,
+    ``("palm", <body>)`` for the hand's other bodies, ``("arm", <body>)`` for the arm's; None
+    for a body that is not the robot's."""
+    if body_name.startswith(HAND_PREFIX):
+        local = body_name[len(HAND_PREFIX) :]
+        for finger in FINGERS:
+            for link in FINGER_LINKS:
+                if local == f"{finger}_{link}":
+                    return finger, link
+        return "palm", local
+    if body_name.startswith(ARM_PREFIX):
+        return "arm", body_name[len(ARM_PREFIX) :]
+    return None

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from controllers.grasp import PAPER_OBJECTS, GraspError, Polygon, paper_object
+from hand_sim.perturb import MAX_SCALE, NAMES, PerturbError, PerturbSpec
 from hand_sim.scene_spec import (
     BLOCK_HEIGHT,
     COLOURS,
@@ -30,7 +31,7 @@ from hand_sim.scene_spec import (
 from hand_sim.tomlfields import TomlFields
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_TOP_KEYS = {"name", "description", "table", "blocks", "target", "place"}
+_TOP_KEYS = {"name", "description", "table", "blocks", "target", "place", "perturb"}
 _TABLE_KEYS = {"size", "height", "position"}
 _BLOCK_KEYS = {"name", "shape", "vertices", "position", "yaw_deg", "height", "colour", "rgba"}
 
@@ -58,6 +59,17 @@ def parse_table(source: str, raw: Any) -> TableSpec:
         )
     position = f.pair("position", DEFAULT_TABLE_POSITION)
     return TableSpec(size_xy=size, height=height, position_xy=position)
+
+
+def parse_perturb(source: str, raw: Any) -> PerturbSpec:
+    """The ``[perturb]`` table: a scale (0..MAX_SCALE; 1 is the magnitudes of
+    :mod:`hand_sim.perturb`) per perturbation name, e.g. ``camera = 1`` or ``woes = 0.5``."""
+    f = TomlFields(source, "perturb", raw, set(NAMES))
+    asked = {name: f.number(name, lo=0.0, hi=MAX_SCALE) for name in NAMES if f.has(name)}
+    try:
+        return PerturbSpec.of(asked)
+    except PerturbError as e:
+        f.fail("", str(e))
 
 
 def parse_block(source: str, index: int, raw: Any) -> BlockSpec:
@@ -125,6 +137,7 @@ def parse_scene(raw: Mapping[str, Any], source: str, default_name: str) -> Scene
     blocks = tuple(parse_block(source, i, b) for i, b in enumerate(raw_blocks))
     target = f.string("target")
     place = f.pair("place")
-    scene = Scene(name, table, blocks, target, place, description)
+    perturb = parse_perturb(source, raw["perturb"]) if f.has("perturb") else PerturbSpec()
+    scene = Scene(name, table, blocks, target, place, description, perturb)
     validate_scene(scene, source)
     return scene

@@ -4,7 +4,7 @@ colours, and the checks every scene passes (:func:`validate_scene`), however it 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -19,6 +19,7 @@ from hand_sim.geometry import (
     place_polygon,
     point_in_convex_polygon,
 )
+from hand_sim.perturb import PerturbSpec
 from hand_sim.resources import models_dir, scenes_dir
 
 #: Directory holding the scene files (``<name>.toml``), found by :mod:`hand_sim.resources`.
@@ -112,7 +113,9 @@ class BlockSpec:
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """A table, the blocks on it, the block to pick (``target``) and the place point (x, y)."""
+    """A table, the blocks on it, the block to pick (``target``) and the place point (x, y);
+    ``perturb``: how the simulated world is to differ from this nominal scene (the file's
+    ``[perturb]`` table, :mod:`hand_sim.perturb`; none by default)."""
 
     name: str
     table: TableSpec
@@ -120,6 +123,7 @@ class Scene:
     target: str
     place: tuple[float, float]
     description: str = ""
+    perturb: PerturbSpec = field(default_factory=PerturbSpec)
 
     @property
     def block_names(self) -> tuple[str, ...]:

@@ -31,15 +31,13 @@ from hand_sim.assembly import (
     geom_top,
 )
 from hand_sim.blocks import JOINT_SUFFIX
-from hand_sim.contact_estimate import (
-    DETECTION_THRESHOLD,
-    ContactEstimate,
-    ContactEstimator,
-    FrictionMemory,
-)
+from hand_sim.contact_estimate import ContactEstimator, FrictionMemory
 from hand_sim.errors import HandSimError, SimulationError
+from hand_sim.hand_senses import TOUCH_PADS, TOUCH_TENDONS, HandSenses
 from hand_sim.indices import RobotIndices, element_id
+from hand_sim.perturb import Perturbation
 from hand_sim.scene_spec import Scene
+from hand_sim.sensing import Sensors
 from hand_sim.tendon_drive import TendonDrive
 
 __all__ = [
@@ -53,10 +51,6 @@ __all__ = [
     "World",
 ]
 
-#: What :meth:`World.touch` reads: the fingertip touch pads (the servo hand), or the contact
-#: forces estimated from the tendon tensions (the tendon hand, :mod:`hand_sim.contact_estimate`).
-TOUCH_PADS, TOUCH_TENDONS = "touch pads", "tendon-tension estimate"
-
 #: MuJoCo warnings that mean the simulation can no longer be trusted.
 FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
@@ -67,7 +61,7 @@ FATAL_WARNINGS: tuple[mujoco.mjtWarning, ...] = (
 )
 
 
-class World:
+class World(HandSenses):
     """The compiled scene: MuJoCo model/data (``.model``, ``.data``) behind a dm_control
     ``mjcf.Physics`` (``.physics``), with accessors that speak the robot's joint order.
 
@@ -76,6 +70,12 @@ class World:
     servo hand's joint targets are its position servos' controls; the tendon hand's are held in
     registers of the same names and :meth:`step` closes its joint loop
     (:class:`~hand_sim.tendon_drive.TendonDrive`) before every physics step.
+
+    ``perturbation`` (:mod:`hand_sim.perturb`) is how this world differs from the nominal one
+    the robot believes in: it is built into the model, and :attr:`sensors` reads the world as
+    the robot's sensors do (offsets, noise). A joint target is what the joint's encoder is to
+    read (:meth:`set_arm_targets`); the accessors ``arm_qpos``, ``hand_qpos``... are the
+    simulation's true state, for the physics, the recording and the judge.
     """
 
     def __init__(
@@ -85,6 +85,7 @@ class World:
         physics: mjcf.Physics,
         with_robot: bool,
         hand: str = DEFAULT_HAND,
+        perturbation: Perturbation | None = None,
     ) -> None:
         self.scene = scene
         self.mjcf_root = mjcf_root
@@ -104,14 +105,25 @@ class World:
         if with_robot and hand == "tendon":
             self.tendon_drive = TendonDrive.for_model(self.model, robot.HAND_PREFIX)
             self.contact_estimator = ContactEstimator.for_model(self.model, robot.HAND_PREFIX)
+        #: how this world differs from the nominal one (None: it is the nominal world)
+        self.perturbation = perturbation
+        if perturbation is not None and with_robot:
+            from hand_sim.perturb_model import apply_gains
+
+            self.tendon_drive = apply_gains(
+                self.model, self.tendon_drive, perturbation, self._idx.hand_ctrl
+            )
+        #: the robot's sensors' readings of this world (offsets and noise of ``perturbation``)
+        self.sensors = Sensors(self, perturbation)
         self._block_bodies, self._block_qpos = self._resolve_blocks()
         self._warnings = self._warning_counts()
-        #: Called with the world after every :meth:`step` call (a controller steps once per
-        #: control period): an episode's recorder and clock hook in here.
-        self.on_step: Callable[[World], None] | None = None
         #: Reusable state of the controllers' kinematic queries, by model
         #: (:mod:`controllers.posture.kinematic_scratch`); nothing of the simulation.
         self.scratch: dict[object, object] = {}
+
+    #: Called with the world after every :meth:`step` call (a controller steps once per
+    #: control period): an episode's recorder and clock hook in here.
+    on_step: Callable[[World], None] | None = None
 
     # --- construction ----------------------------------------------------------------------
     @classmethod
@@ -122,23 +134,31 @@ class World:
         with_robot: bool = True,
         models_dir: Path = MODELS_DIR,
         hand: str = DEFAULT_HAND,
+        perturbation: Perturbation | None = None,
     ) -> World:
         """Assemble the MJCF of ``scene``: table, arm (at :data:`ARM_BASE_POSITION`, ``home``
         posture) carrying the ``hand`` (one of :data:`HAND_KINDS`: "servo", models/hand.xml;
         "tendon", models/utah_mit_hand/), a free prism per block and the overhead camera.
 
         ``with_robot=False`` leaves the arm and hand out (a lighter world for vision and tests).
+        ``perturbation``: the world differs from the nominal one by it (:mod:`hand_sim.perturb`).
         """
         if hand not in HAND_KINDS:
             raise HandSimError(f"unknown hand {hand!r}; valid: {', '.join(HAND_KINDS)}")
-        root, home = build_mjcf(scene, with_robot=with_robot, models_dir=models_dir, hand=hand)
+        root, home = build_mjcf(
+            scene,
+            with_robot=with_robot,
+            models_dir=models_dir,
+            hand=hand,
+            perturbation=perturbation,
+        )
         try:
             physics = mjcf.Physics.from_mjcf_model(root)
         except Exception as e:  # compile errors come from MuJoCo as ValueError
             raise SimulationError(
                 f"the world model for scene {scene.name!r} does not compile: {e}"
             ) from e
-        world = cls(scene, root, physics, with_robot, hand)
+        world = cls(scene, root, physics, with_robot, hand, perturbation)
         world._check_table()
         world._go_home(home)
         return world
@@ -179,7 +199,7 @@ class World:
             j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, robot.arm_name(name))
             if j >= 0:
                 d.qpos[self.model.jnt_qposadr[j]] = value
-        if self.with_robot:
+        if self.with_robot:  # every servo holds the joint where it is
             d.ctrl[self._idx.arm_ctrl] = d.qpos[self._idx.arm_qpos]
             d.ctrl[self._idx.hand_ctrl] = d.qpos[self._idx.hand_qpos]
         if self.tendon_drive is not None:
@@ -302,21 +322,34 @@ class World:
         return a
 
     def set_arm_targets(self, q5: ArrayLike) -> None:
-        """Position-servo targets (rad) of the arm's joints, in :data:`robot.ARM_JOINTS` order."""
-        self.data.ctrl[self._idx.arm_ctrl] = self._targets(q5, len(robot.ARM_JOINTS), "arm")
+        """Position-servo targets (rad) of the arm's joints, in :data:`robot.ARM_JOINTS` order:
+        the angles the joints' encoders are to read (a servo closes its loop on its encoder, so
+        with an encoder offset the joint stops that far from the target)."""
+        q = self._targets(q5, len(robot.ARM_JOINTS), "arm")
+        if self.perturbation is not None:
+            q = q - self.sensors.arm_offsets
+        self.data.ctrl[self._idx.arm_ctrl] = q
 
     def set_hand_targets(self, q16: ArrayLike) -> None:
-        """Position-servo targets (rad) of the hand's joints, in :data:`robot.HAND_JOINTS` order
-        (the tendon hand's joint loop tracks them, clipped to the joint ranges)."""
-        self.data.ctrl[self._idx.hand_ctrl] = self._targets(q16, len(robot.HAND_JOINTS), "hand")
+        """Position-servo targets (rad) of the hand's joints, in :data:`robot.HAND_JOINTS` order,
+        as the joints' angle sensors are to read them (the tendon hand's joint loop tracks them,
+        clipped to the joint ranges)."""
+        q = self._targets(q16, len(robot.HAND_JOINTS), "hand")
+        if self.perturbation is not None:
+            q = q - self.sensors.hand_offsets
+        self.data.ctrl[self._idx.hand_ctrl] = q
 
     def arm_targets(self) -> NDArray[np.float64]:
+        """The arm's servo targets (rad), as set by :meth:`set_arm_targets`."""
         self._require_robot()
-        return self.data.ctrl[self._idx.arm_ctrl].copy()
+        q = self.data.ctrl[self._idx.arm_ctrl].copy()
+        return q if self.perturbation is None else q + self.sensors.arm_offsets
 
     def hand_targets(self) -> NDArray[np.float64]:
+        """The hand's joint targets (rad), as set by :meth:`set_hand_targets`."""
         self._require_robot()
-        return self.data.ctrl[self._idx.hand_ctrl].copy()
+        q = self.data.ctrl[self._idx.hand_ctrl].copy()
+        return q if self.perturbation is None else q + self.sensors.hand_offsets
 
     def arm_qpos(self) -> NDArray[np.float64]:
         """Arm joint angles (rad), :data:`robot.ARM_JOINTS` order."""
@@ -338,6 +371,11 @@ class World:
         self._require_robot()
         return self.data.qvel[self._idx.hand_dof].copy()
 
+    def hand_qacc(self) -> NDArray[np.float64]:
+        """Hand joint accelerations (rad/s^2), :data:`robot.HAND_JOINTS` order."""
+        self._require_robot()
+        return self.data.qacc[self._idx.hand_dof].copy()
+
     def arm_ctrlrange(self) -> NDArray[np.float64]:
         """(5, 2) control range of the arm's servos (rad)."""
         self._require_robot()
@@ -353,97 +391,3 @@ class World:
         """(4, 3) world positions of the fingertip sites, order ff, mf, rf, th."""
         self._require_robot()
         return self.data.site_xpos[self._idx.tip_sites].copy()
-
-    @property
-    def touch_source(self) -> str:
-        """What :meth:`touch` reads: :data:`TOUCH_PADS` or :data:`TOUCH_TENDONS`."""
-        return TOUCH_TENDONS if self.contact_estimator is not None else TOUCH_PADS
-
-    @property
-    def touch_floor(self) -> float:
-        """Force (N) at or below which :meth:`touch` means "no contact" (a lost grip): 0 for the
-        touch pads; the estimate's error floor for the tendon hand
-        (:data:`hand_sim.contact_estimate.DETECTION_THRESHOLD`)."""
-        return DETECTION_THRESHOLD if self.contact_estimator is not None else 0.0
-
-    def touch_felt(self, threshold: float, forces: ArrayLike | None = None) -> NDArray[np.bool_]:
-        """(4,) whether a guard may take each finger for touching now: with touch pads, its pad
-        force (``forces``, default :meth:`touch_sensors`) above ``threshold``; for the tendon
-        hand, the least pad force its tensions allow, every stuck joint's friction anywhere in
-        [-F, F] (:attr:`~hand_sim.contact_estimate.ContactEstimate.least`), above ``threshold``
-        and :data:`~hand_sim.contact_estimate.DETECTION_THRESHOLD`: a finger that friction alone
-        could hold where it is is not taken for a touching one, and a finger pressing harder than
-        its friction could explain is, however unsure the estimate's friction."""
-        if self.contact_estimator is None:
-            self._require_robot()
-            pads = self.touch_sensors() if forces is None else np.asarray(forces, dtype=float)
-            return pads > threshold
-        least = self.contact_estimator.estimate(
-            self.model, self.data, self.friction_memory.direction, least=True
-        ).least
-        return np.asarray(least) > max(threshold, DETECTION_THRESHOLD)
-
-    def touch(self, normals: ArrayLike | None = None) -> NDArray[np.float64]:
-        """(4,) fingertip normal forces (N), order ff, mf, rf, th, as the hand senses them: the
-        servo hand's touch pads (:meth:`touch_sensors`); the tendon hand, which like the real
-        Utah/MIT hand has no fingertip sensors, the estimate from its tendon tensions and joint
-        angles (:meth:`contact_estimate`). :attr:`touch_source` says which. ``normals`` (4, 3):
-        the contacts' outward face normals (world axes), when the caller knows them (a planned
-        grip): the tendon hand then reports each estimated force's component into its face
-        (the pads measure the normal force anyway)."""
-        if self.contact_estimator is not None:
-            return self.contact_estimate(normals).normal
-        return self.touch_sensors()
-
-    def touch_sensors(self) -> NDArray[np.float64]:
-        """(4,) fingertip touch sensor readings (N), order ff, mf, rf, th: the normal force on the
-        palmar side and tip of each distal pad (contacts on the back of a fingertip, or on other
-        finger links, are not felt; :func:`hand_sim.contacts.hand_contacts` lists those). Both
-        hands have them; for the tendon hand they are the ground truth its estimate is judged
-        against, not something its guards read."""
-        self._require_robot()
-        return self.data.sensordata[self._idx.touch_adr].copy()
-
-    def contact_estimate(self, normals: ArrayLike | None = None) -> ContactEstimate:
-        """The tendon hand's fingertip forces estimated from its 32 tension sensors and joint
-        angles (:class:`~hand_sim.contact_estimate.ContactEstimator`; ``normals``: the contacts'
-        outward face normals, as in :meth:`touch`); raises for the servo hand."""
-        self._require_robot()
-        if self.contact_estimator is None:
-            raise HandSimError(f"the {self.hand} hand has no tendons to estimate forces from")
-        faces = None if normals is None else np.asarray(normals, dtype=float).reshape(4, 3)
-        return self.contact_estimator.estimate(
-            self.model, self.data, self.friction_memory.direction, normals=faces
-        )
-
-    def wrist_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The wrist force/torque sensor between the arm's flange and the hand: force (3,) in N
-        and torque (3,) in N m that the flange exerts on the hand, in world axes. With the hand
-        at rest it carries the hand's weight plus whatever the hand holds."""
-        self._require_robot()
-        i, j = self._idx.wrist_force_adr, self._idx.wrist_torque_adr
-        R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
-        d = self.data.sensordata
-        return R @ d[i : i + 3], R @ d[j : j + 3]
-
-    def wrist_acceleration(self) -> NDArray[np.float64]:
-        """The wrist accelerometer (m/s^2, world axes): the hand's acceleration minus gravity, so
-        (0, 0, 9.81) at rest."""
-        self._require_robot()
-        i = self._idx.wrist_accel_adr
-        R = self.data.site_xmat[self._idx.mount_site].reshape(3, 3)
-        return R @ self.data.sensordata[i : i + 3]
-
-    def hand_tensions(self) -> NDArray[np.float64]:
-        """(16, 2) tendon tensions (N) of the tendon hand's joints (:data:`robot.HAND_JOINTS`
-        order; flexor, extensor), read by its tension sensors; raises for the servo hand."""
-        self._require_robot()
-        if self.tendon_drive is None:
-            raise HandSimError(f"the {self.hand} hand has no tendons")
-        return np.column_stack(self.tendon_drive.layout.tensions(self.data))
-
-    def hand_joint_torques(self) -> NDArray[np.float64]:
-        """(16,) torques (N m) the hand's actuators apply to its joints (the servos, or the
-        tendon pairs), :data:`robot.HAND_JOINTS` order."""
-        self._require_robot()
-        return self.data.qfrc_actuator[self._idx.hand_dof].copy()

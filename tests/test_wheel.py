@@ -49,6 +49,7 @@ SCRIPTS = {
     "graspsim-vision": "python -m vision",
     "graspsim-vision-bench": "python -m vision.bench",
     "graspsim-bench": "python -m experiments.bench",
+    "graspsim-interactive": "python -m fsm.interactive",
 }
 #: Seconds allowed per subprocess (the whole module takes well under a minute on 2 cores).
 TIMEOUT = 150
@@ -161,6 +162,7 @@ def test_wheel_carries_models_scenes_and_every_data_file(wheel: Path) -> None:
     top_level = {n.split("/")[0] for n in names if not n.startswith("graspsim-")}
     assert top_level <= set(PACKAGES), f"unexpected top-level entries: {top_level - set(PACKAGES)}"
     assert not any(n.startswith(("models/", "scenes/", "tests/")) for n in names)
+    assert "fsm/interactive/page.html" in names  # the interactive page, a package data file
 
 
 CHECK = r"""

@@ -5,7 +5,7 @@ world point."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,6 +28,10 @@ class Selection:
     segmentation: Segmentation
     noise_sigma: float | None  #: image noise (grey levels); None: measured per block
     names: tuple[str | None, ...]  #: scene name of each block, None when unknown
+    #: each block's model (or why it has none) once computed: a view is modelled once
+    _models: dict[int, ObjectModel | VisionError] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @property
     def blocks(self) -> tuple[BlockRegion, ...]:
@@ -46,13 +50,26 @@ class Selection:
         """The object model of block ``index``; raises ExtractionError saying why if none fits."""
         if not 0 <= index < len(self.blocks):
             raise VisionError(f"block index {index} out of range: {len(self.blocks)} blocks found")
-        return model_from_region(
-            self.observation,
-            self.segmentation,
-            self.blocks[index],
-            self.names[index],
-            self.noise_sigma,
-        )
+        if index not in self._models:
+            try:
+                self._models[index] = model_from_region(
+                    self.observation,
+                    self.segmentation,
+                    self.blocks[index],
+                    self.names[index],
+                    self.noise_sigma,
+                )
+            except VisionError as e:
+                self._models[index] = e
+        found = self._models[index]
+        if isinstance(found, VisionError):
+            raise found
+        return found
+
+    def index_of_model(self, model: ObjectModel) -> int | None:
+        """The block whose model (:meth:`model`) ``model`` is, or None when it is not one of
+        this view's."""
+        return next((i for i, m in self._models.items() if m is model), None)
 
     def _describe(self) -> str:
         h, w = self.segmentation.labels.shape

@@ -22,7 +22,6 @@ from controllers.posture.manipulability import ManipulabilityTask, log_manipulab
 from controllers.posture.reduced_ik import ReducedStep
 from controllers.timing import SERVO_SETTLE_TIME
 from hand_sim import robot
-from hand_sim.contacts import pad_object_forces
 from hand_sim.indices import RobotIndices
 from hand_sim.world import World
 
@@ -449,8 +448,8 @@ def apply_posture(
 
     Position servos sag under gravity (the fingers' servos are soft); ``corrections`` times the
     remaining steady-state joint error is added to the servo targets and the servos settle again,
-    except for a finger whose pad presses on something: its error is the contact's doing, and
-    correcting it would push harder.
+    except for a finger the hand senses pressing on something (``World.pads_pressing``): its
+    error is the contact's doing, and correcting it would push harder.
     """
     start = np.concatenate([world.arm_targets(), world.hand_targets()])
     goal = np.concatenate([result.arm_q, result.hand_q])
@@ -474,7 +473,7 @@ def apply_posture(
     world.step(max(0, round(settle / dt)))
     for _ in range(corrections):
         world.set_arm_targets(world.arm_targets() + result.arm_q - world.arm_qpos())
-        free = np.repeat(pad_object_forces(world) <= CONTACT_FORCE, robot.JOINTS_PER_FINGER)
+        free = np.repeat(~world.pads_pressing(CONTACT_FORCE), robot.JOINTS_PER_FINGER)
         error = np.where(free, result.hand_q - world.hand_qpos(), 0.0)
         world.set_hand_targets(world.hand_targets() + error)
         world.step(max(0, round(settle / dt)))

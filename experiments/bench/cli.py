@@ -57,6 +57,7 @@ from hand_sim.clitools import (
     SEED_MAX,
     ArgumentParser,
     CommandLineError,
+    add_perturb_argument,
     first_paragraph,
     integer,
     one_line,
@@ -83,6 +84,7 @@ RESUME_KEYS = (
     "hand",
     "lateral_gate",
     "lateral_gate_rule",
+    "perturb",
 )
 #: What a bench folder whose settings lack an entry ran (older folders: the planar grasp model,
 #: one cycle, the servo hand, and a place point the hand could not set down at moved to a free
@@ -95,6 +97,7 @@ SETTING_DEFAULTS = {
     "hand": "servo",
     "lateral_gate": 0.4,
     "lateral_gate_rule": "paper",
+    "perturb": None,
 }
 #: The command-line flag of a setting whose name is not the flag's.
 FLAG_OF = {"grasp_model": "model"}
@@ -175,6 +178,7 @@ def parser() -> ArgumentParser:
     add_place_fallback(ap)
     add_hand(ap)
     add_lateral_gate(ap)
+    add_perturb_argument(ap)
     ap.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),
@@ -321,6 +325,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
         "hand": args.hand,
         "lateral_gate": args.lateral_gate,
         "lateral_gate_rule": args.lateral_gate_rule,
+        "perturb": args.perturb,
     }
     done = _check_resume(out, settings, args.resume)
     finished = {int(line["seed"]) for line in done}
@@ -339,6 +344,7 @@ def plan_from_args(argv: Sequence[str] | None) -> Plan:
             hand=args.hand,
             lateral_gate=args.lateral_gate,
             lateral_gate_rule=args.lateral_gate_rule,
+            perturb=args.perturb,
         )
         for s in args.seeds
         if s not in finished

@@ -71,6 +71,8 @@ class Job:
     hand: str = "tendon"  #: as fsm.run's --hand
     lateral_gate: float = 0.4  #: as fsm.run's --lateral-gate
     lateral_gate_rule: str = "opposition"  #: as fsm.run's --lateral-gate-rule
+    #: as fsm.run's --perturb (None: the scene file's [perturb] table, if any)
+    perturb: str | None = None
 
 
 @dataclass(frozen=True)
@@ -158,6 +160,7 @@ def _episode(job: Job, *, record: bool) -> tuple[dict[str, Any], bytes | None]:
                 lateral_gate=job.lateral_gate,
                 lateral_gate_rule=job.lateral_gate_rule,
             ),
+            perturb=job.perturb,
         )
         rrd_path, summary_path = out_paths(options.out)
         extra: dict[str, Any] = {}

@@ -173,6 +173,8 @@ def _command(settings: dict[str, Any], seeds: Sequence[int]) -> str:
         parts.append(f"--lateral-gate-rule {rule}")
     # always written, so that the command runs the same hand whatever the default
     parts.append(f"--hand {settings.get('hand', 'servo')}")
+    if settings.get("perturb") is not None:
+        parts.append(f"--perturb {settings['perturb']}")
     return " ".join(parts)
 
 

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from controllers.grasp.objects import PAPER_OBJECTS
 from controllers.grasp.task_height import HEIGHT_GAP, HEIGHT_TRIES
 from graspsim_base import cli
-from hand_sim.clitools import ERRORS
+from hand_sim.clitools import ERRORS, add_perturb_argument
 
 PROG = "python -m experiments.physics"
 #: The hands the study can put on the arm: ``hand_sim.assembly.HAND_KINDS`` and its default,
@@ -23,6 +23,11 @@ PROG = "python -m experiments.physics"
 HANDS, DEFAULT_HAND = ("servo", "tendon"), "tendon"
 #: Worker processes (more than the machine's cores only adds switching).
 MAX_WORKERS = 64
+#: The perturbations a grasp held in the hand can have (hand_sim.perturb): the block and the
+#: pads (``object``), the hand's sensors (``sensing``) and its tendon drive (``actuation``).
+#: The study sets the hand at a posture solved in its own world, so the camera, the arm's base
+#: and the kinematics do not enter it.
+PERTURB_KINDS = ("object", "sensing", "actuation")
 
 
 def object_list(text: str) -> tuple[str, ...]:
@@ -70,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
             hand=args.hand,
             height_tries=args.height_tries,
             regrasp=args.regrasp,
+            perturb=args.perturb,
         )
         summary = write_report(
             args.out,
@@ -82,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
             models=models,
             hand=args.hand,
             height_tries=args.height_tries,
+            perturb=args.perturb,
         )
     print(
         f"{total} grasps, {summary['tested']} tested physically, {summary['held']} held; "
@@ -157,6 +164,7 @@ def build_parser() -> cli.ArgumentParser:
         "to Posture Control, section 5); counted apart in the report; --no-regrasp tests "
         "every grasp only as first synthesized",
     )
+    add_perturb_argument(ph, PERTURB_KINDS)
     cli.add_seed_argument(ph)
     cli.add_workers_argument(ph, MAX_WORKERS)
     ph.add_argument("--quick", action="store_true", help="two objects, 4 grasps each (tests)")

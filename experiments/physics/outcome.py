@@ -54,6 +54,9 @@ class GraspOutcome:
     turn: dict[str, float] = field(default_factory=dict)
     #: the grasp as held at the end of the squeeze, scored (experiments.physics.measures)
     measures: dict = field(default_factory=dict)
+    #: how the grasp's world differed from the nominal one (--perturb: what was asked and
+    #: drawn, hand_sim.perturb), or None
+    perturbation: dict | None = None
 
     @property
     def tested(self) -> bool:

@@ -53,10 +53,12 @@ def jobs_for(
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
     regrasp: bool = True,
+    perturb: str | None = None,
 ) -> list[Job]:
     """The study's chunks: per model, object and controller (the same starts for every model),
     with the ``hand`` on the arm and, in 3-D, up to ``height_tries`` common heights tried;
-    ``regrasp``: an unreachable grasp is synthesized once more (``--regrasp``)."""
+    ``regrasp``: an unreachable grasp is synthesized once more (``--regrasp``); ``perturb``:
+    each grasp's world perturbed so (``--perturb``)."""
     out = []
     for model in models:
         for obj in objects:
@@ -77,6 +79,7 @@ def jobs_for(
                             hand=hand,
                             height_tries=height_tries,
                             regrasp=regrasp,
+                            perturb=perturb,
                         )
                     )
     return out
@@ -93,10 +96,12 @@ def run_study(
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
     regrasp: bool = True,
+    perturb: str | None = None,
 ) -> list[dict]:
     """Every grasp, in a fixed order (model, object, controller, index) whatever the workers,
-    taken by the ``hand`` ("servo" or "tendon"); ``height_tries`` as in :func:`jobs_for`."""
-    jobs = jobs_for(objects, grasps, seed, models, depth, hand, height_tries, regrasp)
+    taken by the ``hand`` ("servo" or "tendon"); ``height_tries`` and ``perturb`` as in
+    :func:`jobs_for`."""
+    jobs = jobs_for(objects, grasps, seed, models, depth, hand, height_tries, regrasp, perturb)
     results: list[list[dict]] = [[] for _ in jobs]
     with closing(map_unordered(run_job, jobs, workers)) as finished:
         for k, res in finished:
@@ -196,10 +201,11 @@ def render_grasp(
     path: Path,
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
+    perturb: str | None = None,
 ) -> bool:
-    """Re-run one grasp (deterministic, with the ``hand`` and ``height_tries`` of its run) and
-    save a picture: the grasp after the squeeze beside the moment the test lost it. False when
-    the re-run does not reproduce the drop."""
+    """Re-run one grasp (deterministic, with the ``hand``, ``height_tries`` and ``perturb`` of
+    its run) and save a picture: the grasp after the squeeze beside the moment the test lost it.
+    False when the re-run does not reproduce the drop."""
     import mujoco
 
     frames: dict[str, np.ndarray] = {}
@@ -216,6 +222,7 @@ def render_grasp(
         height_tries=height_tries,
         # a regrasped grasp came from a run with --regrasp; any other was taken first time
         regrasp=bool(entry.get("regrasped")),
+        perturb=perturb,
     )
     renderer: list = []
 
@@ -275,10 +282,11 @@ def write_report(
     models: Sequence[str] = ("planar",),
     hand: str = DEFAULT_HAND,
     height_tries: int = HEIGHT_TRIES,
+    perturb: str | None = None,
 ) -> dict:
     """results.jsonl, summary.json, report.md, roc.png, sg_hist.png and a few pictures; the
-    summary and the report name the ``hand`` that took the grasps (``height_tries``: the run's,
-    for re-running the pictured grasps)."""
+    summary and the report name the ``hand`` that took the grasps (``height_tries`` and
+    ``perturb``: the run's, for re-running the pictured grasps)."""
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "results.jsonl", "".join(json.dumps(r) + "\n" for r in results))
     tested = [r for r in results if r["result"] in ("held", "dropped")]
@@ -300,7 +308,7 @@ def write_report(
         for r in [r for r in false_pos if r.get("model", "planar") == m][:pictures]:
             prefix = "" if m == "planar" else f"{m}_"
             name = f"dropped_{prefix}{r['object']}_{r['controller']}_{r['index']}.png"
-            if render_grasp(r, seed, out / name, hand, height_tries):
+            if render_grasp(r, seed, out / name, hand, height_tries, perturb):
                 drawn.append((name, r))
     summary = {
         "command": command,
@@ -318,6 +326,7 @@ def write_report(
         "false_positives": len(false_pos),
         "models": list(models),
         "hand": hand,
+        "perturb": perturb,
     }
     compare_md, summary["measures"] = measures_section(results, tuple(models))
     if tested:
@@ -328,7 +337,14 @@ def write_report(
         "# The physical grasp study: S_G against MuJoCo",
         "",
         f"Command: `{command}` ({seconds:.0f} s wall). Seed {seed}; {grasps} grasps per object "
-        f"and controller; the {hand} hand.",
+        f"and controller; the {hand} hand."
+        + (
+            f" Each grasp's world perturbed: `--perturb {perturb}`, drawn from the grasp's "
+            "seed (docs/robustness.md); the controllers' task is set from the block's nominal "
+            "weight, the test's pushes from its true one."
+            if perturb
+            else ""
+        ),
         "",
         f"Test: block hanging in the hand (table collisions off), m*g along {stages}, "
         f"{FORCE_TIME:g} s each, then a {LIFT_HEIGHT * 100:.0f} cm lift; held = the block stays "

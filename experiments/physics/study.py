@@ -28,6 +28,7 @@ One grasp, start to end (:func:`test_grasp`):
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -54,6 +55,7 @@ from experiments.physics.synthesis import Synthesis, grasp_depths, synthesize
 from hand_sim import robot
 from hand_sim.errors import SimulationError
 from hand_sim.indices import RobotIndices
+from hand_sim.perturb import PerturbSpec, for_episode
 from hand_sim.scene import load_scene
 from hand_sim.world import DEFAULT_HAND, World
 
@@ -141,6 +143,9 @@ class StudyWorld:
     prism: PerceivedPrism
     postures: list[HandPosture]
     checker: CollisionChecker
+    #: the block's nominal weight (N): its volume times wood's density times g, what the
+    #: controllers' task is set from (a perturbed block's true weight is not known to them)
+    weight: float = 0.0
 
     @classmethod
     def of(cls, obj: str, model: str = "planar", hand: str = DEFAULT_HAND) -> StudyWorld:
@@ -158,7 +163,19 @@ class StudyWorld:
             prism,
             top_postures(world, target, depths=grasp_depths(model)),
             CollisionChecker(world),
+            world.block_weight(name),
         )
+
+    def perturbed(self, perturb: str | None, seed: tuple[int, ...]) -> StudyWorld:
+        """This block's world perturbed as ``perturb`` asks (``--perturb``; hand_sim.perturb),
+        drawn from ``seed`` (the grasp's seed words), or itself when nothing is perturbed. The
+        hand's seed postures, the checker and the nominal weight stay the nominal world's."""
+        spec = PerturbSpec() if perturb is None else PerturbSpec.parse(perturb)
+        p = for_episode(spec, seed, [self.name])
+        if p is None:
+            return self
+        world = World.build(self.world.scene, hand=self.world.hand, perturbation=p)
+        return dataclasses.replace(self, world=world)
 
 
 def _set_robot(world: World, qpos: np.ndarray, hand_q: np.ndarray) -> None:
@@ -266,7 +283,7 @@ def synthesize_on(
         composer,
         theta0,
         rng,
-        load=sw.world.block_weight(sw.name) / GRIP_FORCE,
+        load=sw.weight / GRIP_FORCE,
         yaw=-sw.target.yaw,
         height_tries=height_tries,
         heights_initial=heights0,
@@ -420,6 +437,10 @@ class Job:
     height_tries: int = HEIGHT_TRIES
     #: an unreachable grasp is synthesized once more from contacts the hand holds (--regrasp)
     regrasp: bool = True
+    #: how each grasp's world differs from the nominal one (--perturb; None: it does not),
+    #: drawn from the grasp's seed words (seed, object, index): the same perturbed block for
+    #: the three controllers' grasp of one index
+    perturb: str | None = None
 
 
 def initial_contacts(job: Job, index: int) -> tuple[list[float], np.random.Generator]:
@@ -437,8 +458,11 @@ def run_job(job: Job, snapshot: Snapshot | None = None) -> list[dict]:
     for i in job.indices:
         theta0, rng = initial_contacts(job, i)
         o = GraspOutcome(job.obj, job.controller, i, theta0, model=job.model, depth=job.depth)
+        taken = sw.perturbed(job.perturb, (job.seed, job.obj_index, i))
+        if taken.world.perturbation is not None:
+            o.perturbation = taken.world.perturbation.to_json()
         test_grasp(
-            sw,
+            taken,
             composer,
             rng,
             o,

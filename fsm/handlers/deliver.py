@@ -25,7 +25,7 @@ from controllers.reach.arm_path import ROLL_TURNED_ABOVE
 from fsm.config import TaskConfig
 from fsm.context import CycleRecord, Episode
 from fsm.episode_queries import is_lateral, top_to_clear
-from fsm.judge import judge, tilt_degrees
+from fsm.judge import block_clearance_now, block_height_now, block_tilt_now, judge
 from fsm.layout import free_slot
 from fsm.recovery import grasp_again_or_fail, lift_retry_left, park_arm
 from fsm.states import Failure, State, Step, TaskFailedError
@@ -49,7 +49,8 @@ def _unreachable_detail(ep: Episode, tried: list[np.ndarray], reason: str) -> st
     """Why no set-down was found: at the point asked for (with the flag that would try
     another), or at every slot the task cycle tried."""
     where = tried[-1].round(3).tolist()
-    if ep.cycle == 0 and len(tried) == 1 and not ep.record.delivered_elsewhere:
+    asked = ep.record.place_asked is not None
+    if asked and len(tried) == 1 and not ep.record.delivered_elsewhere:
         hint = (
             ""
             if ep.options.place_fallback == "nearest"
@@ -70,13 +71,19 @@ def lift_held(
     config: TaskConfig,
 ) -> bool:
     """Whether the hand holds the block after the lift, by what it senses: the wrist's ``load``
-    (N) at least ``config.min_held_share`` of the ``expected`` weight, and no more than one pad
-    lost (``touch`` (4,) at or below ``floor``). In a ``lateral`` grasp only the pads the
+    (N) above ``config.closed_loop.held_floor`` (the hand holds something; a real block's
+    density is not known, so not its ``expected`` weight; with ``closed_loop.sensed_weight`` off,
+    ``config.min_held_share`` of it), and no more than one
+    pad lost (``touch`` (4,) at or below ``floor``). In a ``lateral`` grasp only the pads the
     squeeze asked for at least ``config.carrying_share`` of its mean force (``forces`` (4,))
     count (the others only touch lightly and may let go as the block settles), and none count
     when the wrist weighs the block and two pads still feel it (the carry's own test): it has
     settled onto those pads, or against the palm."""
-    held = load >= config.min_held_share * expected
+    loop = config.closed_loop
+    if loop.sensed_weight:
+        held = load >= loop.held_floor
+    else:
+        held = load >= config.min_held_share * expected
     lost = touch <= floor
     if lateral:
         lost &= forces >= config.carrying_share * forces.mean()
@@ -94,9 +101,11 @@ def _hold_lost(ep: Episode) -> str:
     if lift_held(
         load, ep.expected_load, touch, world.touch_floor, ep.grip.forces, is_lateral(ep), ep.config
     ):
+        ep.held_weight = load if ep.config.closed_loop.sensed_weight else ep.expected_load
+        ep.record.lift_weight = round(load, 4)
         return ""
     return (
-        f"the hand holds {load:.2f} N of an expected {ep.expected_load:.2f} N; "
+        f"the hand holds {load:.2f} N (the block's nominal weight {ep.expected_load:.2f} N); "
         f"touch {np.round(touch, 2).tolist()} N"
     )
 
@@ -147,19 +156,19 @@ def deliver(ep: Episode) -> Step:
     record = ep.record
     config = ep.config
     checker = CollisionChecker(world)
-    table_z = world.scene.table.height
-    half = 0.5 * world.scene.block(name).height  # to measure clearance (judging only)
     log = ep.recorder.log_transition
+    truth = ep.simulated  # the summary's judged fields only: no decision reads them
 
-    def clearance_now(w) -> float:
-        return float(w.block_pose(name)[0][2] - half - table_z)
+    def clearance_now() -> float:
+        return block_clearance_now(truth, name)
 
+    start_z = block_height_now(truth, name)
     lifted = lift(world, checker, name, ep.grip, height=LIFT_HEIGHT, duration=LIFT_TIME)
-    record.lift_height = float(lifted.block_rise)
-    record.lift_slip = float(lifted.slip)
-    record.lift_clearance = max(record.lift_clearance, clearance_now(world))
+    record.lift_height = block_height_now(truth, name) - start_z
+    record.lift_slip = float(lifted.palm_rise - record.lift_height)
+    record.lift_clearance = max(record.lift_clearance, clearance_now())
     record.lift_tip_motion_mm = (lifted.tip_motion * 1000.0).round(2).tolist()
-    record.lift_tilt_deg = round(tilt_degrees(world.block_pose(name)[1]), 2)  # judging only
+    record.lift_tilt_deg = round(block_tilt_now(truth, name), 2)
     lost = _hold_lost(ep)
     if lost:
         return grasp_again_or_fail(ep, lost)
@@ -176,14 +185,15 @@ def deliver(ep: Episode) -> Step:
         f"lifted: block rose {record.lift_height * 100:.1f} cm{carried}",
     )
     # the hand may set the block down nearer its neighbours at a point the user or the scene
-    # asked for; a slot the task cycle chose itself gives way to the next free one instead
-    asked = ep.cycle == 0
+    # asked for (the first cycle's, or every cycle's in interactive mode); a slot the task
+    # cycle chose itself gives way to the next free one instead
+    asked = record.place_asked is not None
     plan = plan_delivery(world, name, ep.place, block_height=ep.model.height, nearer=asked)
     tried = [np.asarray(ep.place, dtype=float)]
     # a place the task cycle chose itself (a later cycle's slot) may be free for the block but
     # not for the hand around it: take the next free slot; a place point asked for is moved only
     # when the user lets it (--place-fallback nearest), and the move is reported
-    movable = ep.cycle > 0 or ep.options.place_fallback == "nearest"
+    movable = not asked or ep.options.place_fallback == "nearest"
     while not plan.found and movable and len(tried) < config.max_place_slots:
         taken = [t + 0.001 * np.array([[1.0, 0.0], [-0.5, 0.87], [-0.5, -0.87]]) for t in tried]
         slot = free_slot(
@@ -213,7 +223,7 @@ def deliver(ep: Episode) -> Step:
 
     def watch(w) -> None:
         """Sensed, not judged: the pads (the wrist is weighed at rest, after the carry)."""
-        record.lift_clearance = max(record.lift_clearance, clearance_now(w))
+        record.lift_clearance = max(record.lift_clearance, clearance_now())
         lost.append(int((w.touch() > w.touch_floor).sum()) < 2)
         if len(lost) == config.drop_window and all(lost):
             raise _DroppedError
@@ -228,11 +238,11 @@ def deliver(ep: Episode) -> Step:
         ) from e
     world.step(round(config.weigh_time / world.model.opt.timestep))
     load = held_load(world, ep.empty_hand_force)
-    if load < config.min_held_share * ep.expected_load:
+    if load < config.min_held_share * ep.held_weight:
         raise TaskFailedError(
             Failure.DROPPED_IN_TRANSPORT,
-            f"after the carry the hand holds {load:.2f} N of an expected "
-            f"{ep.expected_load:.2f} N (wrist sensor, at rest)",
+            f"after the carry the hand holds {load:.2f} N of the {ep.held_weight:.2f} N it "
+            "weighed after the lift (wrist sensor, at rest)",
         )
     record.set_down = plan.set_down
     lowering = f" ({record.set_down})" if record.set_down else ""
@@ -250,9 +260,11 @@ def deliver(ep: Episode) -> Step:
             f"lowered {down.lowered * 100:.1f} cm; the hand still holds {down.load_after:.2f} N",
         )
     release(world, ep.grip)
+    world.let_go()
+    world.put(name, ep.place)
     retreat(world, checker, clear_top=top_to_clear(ep))
     world.step(round(0.5 / world.model.opt.timestep))
-    verdict = judge(world, name, ep.place, record.lift_clearance, ep.others_before)
+    verdict = judge(truth, name, ep.place, record.lift_clearance, ep.others_before)
     record.judgement = {
         "place_error_mm": verdict.place_error_mm,
         "tilt_deg": verdict.tilt_deg,
@@ -276,6 +288,8 @@ def deliver(ep: Episode) -> Step:
         f"({ep.place[0]:.3f}, {ep.place[1]:.3f}) ({record.place_chosen_by}), "
         f"tilt {verdict.tilt_deg:.1f} deg"
     ) + _elsewhere_note(record)
+    if ep.user is not None:  # interactive: back to the user, "waiting for the next command"
+        return Step(State.WAIT_FOR_BLOCK, f"{summary}; {park_arm(ep)}")
     cycles = ep.options.cycles
     if cycles is None or len(ep.cycles) < cycles:
         ep.cycle += 1

@@ -88,8 +88,10 @@ def grasp_object(ep: Episode) -> Step:
             look=True,
         )
     touching = "all four pads touch" if contacts.idle is None else "the three pads touch"
+    world.hold(ep.target_name)  # the robot's belief: the block moves with the palm from now on
     return Step(
-        State.DELIVER,
+        # interactive mode: the user gives the delivery point now (section 5.2, Deliver)
+        State.DELIVER if ep.user is None else State.WAIT_FOR_PLACE,
         f"{touching}; squeezed to {np.round(result.touch, 1).tolist()} N "
         f"(mean target {result.target.mean():.1f} N{reserve})",
     )

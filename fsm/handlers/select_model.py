@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from fsm.context import CycleRecord, Episode
+from fsm.judge import other_blocks_now, seen_against_truth
 from fsm.perception import (
     adopt_model,
     choose_blocks,
@@ -26,9 +27,21 @@ def select_model(ep: Episode) -> Step:
     world = ep.world
     if ep.parked_arm is None:
         ep.parked_arm = world.arm_qpos().copy()
-    ep.selection = perceive(world)
+    clicked, ep.clicked = ep.clicked, None
+    check = ep.config.closed_loop.camera_check
+    ep.selection = perceive(world, check_camera=check) if clicked is None else clicked.selection
+    camera = world.last_check
+    if camera is not None and camera.corrected:
+        record.camera_recalibrated = {
+            "shift_mm": round(camera.shift * 1000.0, 2),
+            "turn_deg": round(float(np.degrees(camera.turn)), 3),
+        }
     try:
-        candidates = choose_blocks(world, ep.selection, ep.options, ep.cycle, ep.delivered)
+        candidates = (
+            choose_blocks(world, ep.selection, ep.options, ep.cycle, ep.delivered)
+            if clicked is None
+            else [clicked.index]  # interactive: the block clicked, in the view clicked on
+        )
     except LookupError:
         return Step(State.DONE, "no block left to pick")
     except VisionError as e:  # NotABlockError among them
@@ -50,30 +63,26 @@ def select_model(ep: Episode) -> Step:
     adopt_model(ep, name, model)
     ep.expected_load = model.polygon.area * model.height * WOOD_DENSITY * STANDARD_GRAVITY
     record.polygon = model.polygon.vertices.round(5).tolist()
-    truth = world.scene.block(name)
-    true_pos = world.block_pose(name)[0]
-    record.block_start = [float(v) for v in true_pos]
-    record.polygon_error = {
-        "centroid_mm": float(np.linalg.norm(model.centroid[:2] - true_pos[:2]) * 1000),
-        "area_percent": float(
-            abs(model.polygon.area - truth.polygon.area) / truth.polygon.area * 100
-        ),
-        "edges": float(model.n_edges),
-        "true_edges": float(truth.polygon.n_edges),
-    }
+    # judged, for the summary: the block's true position and the model's error against it
+    record.block_start, record.polygon_error = seen_against_truth(
+        ep.simulated, name, model.centroid, model.polygon.area, model.n_edges
+    )
     # the place point must be clear of every other perceived block
-    footprints, unmodelled = other_footprints(world, ep.selection, index, model.world_vertices)
+    footprints, unmodelled = other_footprints(world, ep.selection, index, model)
     record.obstacles_not_modelled = unmodelled
     radius = float(np.linalg.norm(model.polygon.vertices, axis=1).max())
-    choice = place_for_cycle(world, ep.options, ep.cycle, footprints, radius, ep.config.place_reach)
-    ep.place_footprints, ep.place_radius = footprints, radius
-    if choice.asked is not None:
-        record.place_asked = (float(choice.asked[0]), float(choice.asked[1]))
-    record.place_chosen_by = choice.chosen_by
-    ep.use_place(choice.point)
-    ep.others_before = {
-        b.name: world.block_pose(b.name)[0] for b in world.scene.blocks if b.name != name
-    }
+    if ep.user is not None:  # interactive: the user clicks the place point after Grasp Object
+        ep.place_footprints, ep.place_radius = footprints, radius
+        ep.place = None
+    else:
+        reach = ep.config.place_reach
+        choice = place_for_cycle(world, ep.options, ep.cycle, footprints, radius, reach)
+        ep.place_footprints, ep.place_radius = footprints, radius
+        if choice.asked is not None:
+            record.place_asked = (float(choice.asked[0]), float(choice.asked[1]))
+        record.place_chosen_by = choice.chosen_by
+        ep.use_place(choice.point)
+    ep.others_before = other_blocks_now(ep.simulated, name)  # for the judge
     ep.recorder.set_target(name)
     log_view(ep, model)
     return Step(
@@ -88,6 +97,8 @@ def place_text(record: CycleRecord) -> str:
     """The cycle's place point for the transition log: where it goes, who chose it, and the point
     asked for when it differs (``--place-fallback nearest``)."""
     used = record.place_used
+    if used is None:
+        return "the place point is the user's click after Grasp Object"
     text = f"place at ({used[0]:.3f}, {used[1]:.3f}) ({record.place_chosen_by})"
     if record.delivered_elsewhere and record.place_asked is not None:
         asked = record.place_asked

@@ -22,6 +22,7 @@ from fsm.machine import run_episode
 from fsm.run import main, options_from_args
 from fsm.states import TRANSITIONS, Failure, State, allowed, table_markdown
 from hand_sim.recorder import read_recording as _read
+from tests.fsm.clutter3 import shared_clutter3_run
 
 
 def read_recording(path: Path) -> dict[str, dict[str, int]]:
@@ -115,8 +116,7 @@ def test_synthesis_without_separation_is_the_papers_controller() -> None:
 # --- whole episodes ------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def clutter3_episode(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
-    out = tmp_path_factory.mktemp("clutter3")
-    code = main(["--scene", "clutter3", "--controller", CONTROLLER, "--out", str(out)])
+    out, code = shared_clutter3_run(tmp_path_factory)  # --controller pi, shared with test_live
     summary = json.loads((out / "summary.json").read_text())
     return out, {"code": code, **summary}
 
@@ -228,7 +228,7 @@ def test_an_unstable_simulation_fails_cleanly(tmp_path: Path, monkeypatch) -> No
     original = handlers.HANDLERS[State.FINE_REACH]
 
     def blow_up(ep):
-        ep.world.data.qvel[0] = np.nan
+        ep.simulated.data.qvel[0] = np.nan  # the physics itself goes unstable
         return original(ep)
 
     monkeypatch.setitem(handlers.HANDLERS, State.FINE_REACH, blow_up)

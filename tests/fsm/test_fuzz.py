@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
+from controllers.planning.belief_world import BeliefWorld
 from fsm.config import DEFAULT_CONFIG
 from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, EpisodeOptions
 from fsm.machine import run_episode
@@ -62,7 +63,7 @@ def _degenerate(mask: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndar
 @pytest.mark.parametrize("seed", [7])
 def test_degenerate_regions_of_a_random_view_are_modelled_or_refused(seed: int) -> None:
     scene = load_scene("random", seed=seed, blocks=3)
-    sel = perceive(World.build(scene))
+    sel = perceive(BeliefWorld.over(World.build(scene)))
     rng = np.random.default_rng(seed)
     cases = [
         (f"{name} of block {r.index}", r, mask)

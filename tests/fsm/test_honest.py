@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.planning.belief_world import BeliefWorld
 from fsm import handlers
 from fsm.context import PLACE_BY_SCENE, PLACE_BY_TASK, PLACE_BY_USER, EpisodeOptions
 from fsm.layout import SLOT_CLEARANCE, place_is_free
@@ -123,7 +124,7 @@ def test_an_unmodelled_block_is_an_obstacle_grown_by_the_margin(clutter3_world: 
     """A region of one pixel still stands in the way: a polygon around the pixel's point on
     the top plane, the margin away from it in every direction (within the octagon's sag); a
     region without a pixel is no obstacle."""
-    sel = perceive(clutter3_world)
+    sel = perceive(BeliefWorld.over(clutter3_world))
     region = sel.blocks[0]
     one = np.zeros_like(region.top_mask)
     u, v = (round(c) for c in region.pixel_centroid)
@@ -252,9 +253,9 @@ def test_an_exception_of_the_machine_itself_is_named_too(tmp_path: Path, monkeyp
 
 
 def _tip_over_and_fail(ep) -> Step:
-    """The picked block laid on its side (as a hand that pushes it over would), then a named
-    failure."""
-    world, name = ep.world, ep.record.block
+    """The picked block laid on its side in the simulated world (as a hand that pushes it over
+    would), then a named failure."""
+    world, name = ep.simulated, ep.record.block
     m = world.model
     body = world.block_body_id(name)
     adr = m.jnt_qposadr[m.body_jntadr[body]]

@@ -2,6 +2,8 @@
 still feel it. Cases from the bench's lateral episodes (random 14's second grasp: the wrist held
 1.48 N of 1.48 N with two pads at 4.4 and 10.8 N and the two others off the block)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -30,11 +32,27 @@ EVEN = np.array([3.1, 3.9, 3.2, 2.1])  # a squeeze's targets, every finger carry
         (1.48, [4.0, 0.0, 5.0, 2.0], np.array([6.0, 0.3, 3.5, 2.4]), True, True),
         # every pad on the block
         (1.48, [4.0, 1.0, 5.0, 2.0], EVEN, False, True),
-        # half the weight is the least the wrist must weigh
-        (0.70, [4.0, 1.0, 5.0, 2.0], EVEN, True, False),
+        # a block lighter than wood (half its density) is held: the density is not known
+        (0.70, [4.0, 1.0, 5.0, 2.0], EVEN, True, True),
+        (0.70, [4.0, 1.0, 5.0, 2.0], EVEN, False, True),
+        # below the floor the wrist holds nothing, whatever the pads say
+        (0.15, [4.0, 1.0, 5.0, 2.0], EVEN, False, False),
     ],
 )
 def test_the_lift_is_held_when_the_wrist_weighs_the_block_and_pads_still_feel_it(
     load, touch, forces, lateral, held
 ) -> None:
     assert lift_held(load, 1.48, np.asarray(touch), FLOOR, forces, lateral, DEFAULT_CONFIG) is held
+
+
+def test_a_check_by_the_nominal_weight_calls_a_light_block_slipped() -> None:
+    """With the sensed weight off, the lift's check expects the block's nominal weight and calls
+    a block at half wood's density slipped while the hand holds it (section 5.3's "imprecise
+    object models")."""
+    before = dataclasses.replace(
+        DEFAULT_CONFIG,
+        closed_loop=dataclasses.replace(DEFAULT_CONFIG.closed_loop, sensed_weight=False),
+    )
+    touch = np.array([4.0, 1.0, 5.0, 2.0])
+    assert not lift_held(0.70, 1.48, touch, FLOOR, EVEN, False, before)
+    assert lift_held(0.70, 1.48, touch, FLOOR, EVEN, False, DEFAULT_CONFIG)
