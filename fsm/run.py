@@ -82,6 +82,16 @@ def add_scene(ap: argparse.ArgumentParser) -> None:
     )
 
 
+def add_models(ap: argparse.ArgumentParser) -> None:
+    """``--models``: the grasp controllers' trained models."""
+    ap.add_argument(
+        "--models",
+        default=None,
+        help="trained models folder from `python -m experiments.paper reproduce --out DIR` "
+        "(default: the shipped ones)",
+    )
+
+
 def add_controller_and_approach(ap: argparse.ArgumentParser) -> None:
     """``--controller`` and ``--approach``, as ``fsm.run`` and ``experiments.bench`` take them."""
     ap.add_argument(
@@ -226,12 +236,7 @@ def parser() -> ArgumentParser:
     ap.add_argument(
         "--out", type=out_dir, default=None, help="output folder (default runs/<scene>-<seed>)"
     )
-    ap.add_argument(
-        "--models",
-        default=None,
-        help="trained models folder from `python -m experiments.paper reproduce --out DIR` "
-        "(default: the shipped ones)",
-    )
+    add_models(ap)
     add_hand(ap)
     add_lateral_gate(ap)
     add_perturb_argument(ap)

@@ -25,7 +25,13 @@ from fsm.interactive.hub import Hub, Mailbox
 from fsm.interactive.server import PageServer, is_loopback
 from fsm.layout import episode_scene
 from fsm.live import DEFAULT_LIVE_PORT, LiveStream, check_host, listen_port, serve_stream
-from fsm.run import add_controller_and_approach, add_hand, add_lateral_gate, add_scene
+from fsm.run import (
+    add_controller_and_approach,
+    add_hand,
+    add_lateral_gate,
+    add_models,
+    add_scene,
+)
 from hand_sim.clitools import (
     ERRORS,
     ArgumentParser,
@@ -52,12 +58,7 @@ def parser() -> ArgumentParser:
     ap = ArgumentParser(prog=PROG, description=first_paragraph(__doc__))
     add_scene(ap)
     add_controller_and_approach(ap)
-    ap.add_argument(
-        "--models",
-        default=None,
-        help="trained models folder from `python -m experiments.paper reproduce --out DIR` "
-        "(default: the shipped ones)",
-    )
+    add_models(ap)
     add_hand(ap)
     add_lateral_gate(ap)
     add_perturb_argument(ap)
