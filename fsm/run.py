@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -373,21 +374,30 @@ def options_from_args(argv: Sequence[str] | None) -> EpisodeOptions:
         pick_pixel=None,
         place=place,
         place_fallback=args.place_fallback,
-        controller=args.controller,
-        approach=args.approach,
-        grasp_model=args.model,
         cycles=cycles,
         out=out,
         record=not args.no_record,
-        models=None if args.models is None else Path(args.models),
-        hand=args.hand,
-        config=replace(
+        **task_settings(args),
+    )
+
+
+def task_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The episode options the task cycle's flags set (:func:`add_controller_and_approach`,
+    :func:`add_models`, :func:`add_hand`, :func:`add_lateral_gate`, ``--perturb``), as keywords
+    of :class:`~fsm.context.EpisodeOptions`."""
+    return {
+        "controller": args.controller,
+        "approach": args.approach,
+        "grasp_model": args.model,
+        "models": None if args.models is None else Path(args.models),
+        "hand": args.hand,
+        "config": replace(
             DEFAULT_CONFIG,
             lateral_gate=args.lateral_gate,
             lateral_gate_rule=args.lateral_gate_rule,
         ),
-        perturb=args.perturb,
-    )
+        "perturb": args.perturb,
+    }
 
 
 def run(argv: Sequence[str] | None) -> int:

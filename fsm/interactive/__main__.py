@@ -15,11 +15,9 @@ import sys
 import time
 import uuid
 from collections.abc import Sequence
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from fsm.config import DEFAULT_CONFIG
 from fsm.context import EpisodeOptions
 from fsm.interactive.hub import Hub, Mailbox
 from fsm.interactive.server import PageServer, is_loopback
@@ -31,6 +29,7 @@ from fsm.run import (
     add_lateral_gate,
     add_models,
     add_scene,
+    task_settings,
 )
 from hand_sim.clitools import (
     ERRORS,
@@ -101,18 +100,8 @@ def options_from_args(args: argparse.Namespace) -> EpisodeOptions:
         scene=args.scene,
         seed=args.seed,
         blocks=args.blocks,
-        controller=args.controller,
-        approach=args.approach,
-        grasp_model=args.model,
         out=prepare_dir(out, "--out"),
-        models=None if args.models is None else Path(args.models),
-        hand=args.hand,
-        config=replace(
-            DEFAULT_CONFIG,
-            lateral_gate=args.lateral_gate,
-            lateral_gate_rule=args.lateral_gate_rule,
-        ),
-        perturb=args.perturb,
+        **task_settings(args),
     )
 
 
